@@ -1,0 +1,1 @@
+//! CAN bus trait with SocketCAN and iceoryx2 virtual-bus backends.

@@ -1,0 +1,1 @@
+//! Segway RMP base driver over a CAN bus.

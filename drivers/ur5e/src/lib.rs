@@ -1,0 +1,1 @@
+//! UR5e drivers: RTDE, dashboard, URScript, gripper, arm skills.

@@ -1,0 +1,1 @@
+//! Segway RMP CAN protocol codec (no_std, no heap).

@@ -1,0 +1,1 @@
+//! The paper's experiments: GROP and baselines executed in the trial simulator.

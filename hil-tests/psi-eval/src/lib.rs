@@ -1,0 +1,1 @@
+//! Quality evaluation of feasibility evaluators (FCN, geometric heuristics, oracle) against simulated ground truth.

@@ -1,0 +1,1 @@
+//! Simulated Segway RMP base on the virtual CAN bus.

@@ -1,0 +1,1 @@
+//! Simulated UR5e controller on loopback TCP.

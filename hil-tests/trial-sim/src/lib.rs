@@ -1,0 +1,1 @@
+//! Trial simulator, dataset generator and experiments.

@@ -1,0 +1,1 @@
+//! FCN feasibility evaluator Psi: ONNX inference with tract.

@@ -1,0 +1,56 @@
+//! `grop`: the command-line entry point of the GROP dinner-table controller.
+//!
+//! Every job is a subcommand in its own module (`cmd_*.rs`), each with `--help` and defaults:
+//! `grop datagen`, `grop render`, `grop model-eval`, `grop eval`, `grop bench`.
+
+use clap::{Parser, Subcommand};
+
+mod cmd_bench;
+mod cmd_datagen;
+mod cmd_eval;
+mod cmd_model_eval;
+mod cmd_render;
+
+/// GROP: visually grounded task-and-motion planning for a mobile manipulator setting dinner tables.
+#[derive(Parser, Debug)]
+#[command(name = "grop", version, about, long_about = None)]
+struct Cli {
+    /// Log level filter (error, warn, info, debug, trace); RUST_LOG overrides it.
+    #[arg(long, global = true, default_value = "info")]
+    log: String,
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+enum Command {
+    /// Generate the feasibility dataset: trials at every candidate cell of every task.
+    Datagen(cmd_datagen::Args),
+    /// Render a scene (generated or from a file) with its heatmaps overlaid, as a PNG.
+    Render(cmd_render::Args),
+    /// Measure a feasibility evaluator (FCN, heuristics) against simulated ground truth.
+    ModelEval(cmd_model_eval::Args),
+    /// Run the paper's experiments: GROP and the baselines executed in the simulator.
+    Eval(cmd_eval::Args),
+    /// Benchmarks: writes medians and p99 to docs/.
+    Bench(cmd_bench::Args),
+}
+
+fn main() -> std::process::ExitCode {
+    let cli = Cli::parse();
+    env_logger::Builder::from_env(env_logger::Env::default().default_filter_or(&cli.log)).init();
+    let result = match cli.command {
+        Command::Datagen(a) => cmd_datagen::run(a),
+        Command::Render(a) => cmd_render::run(a),
+        Command::ModelEval(a) => cmd_model_eval::run(a),
+        Command::Eval(a) => cmd_eval::run(a),
+        Command::Bench(a) => cmd_bench::run(a),
+    };
+    match result {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            std::process::ExitCode::FAILURE
+        }
+    }
+}

@@ -1,0 +1,1 @@
+//! Task planner, GROP and baselines.

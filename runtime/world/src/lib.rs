@@ -1,0 +1,1 @@
+//! Dinner-table world: scene and robot files, generators, occupancy grid, A*, overhead rendering.
