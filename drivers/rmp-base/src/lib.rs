@@ -1,1 +1,73 @@
-//! Segway RMP base driver over a CAN bus.
+//! Segway RMP v3 base driver: mode changes, velocity commands at a fixed rate under speed and
+//! acceleration limits, feedback decoded into odometry and status, an input watchdog that ramps
+//! to zero when the caller goes quiet, and typed errors when the base stops answering.
+//!
+//! The driver is a state machine driven by [`RmpBase::tick`], called once per command period
+//! (50 Hz by default) with the time of a monotonic clock the caller owns (wall clock on the
+//! robot, a simulated clock in HIL, see [`MonotonicClock`]). It speaks to the base through an
+//! [`RmpLink`]; [`CanLink`] puts it on any `can_bus::CanBus` (SocketCAN, the iceoryx2 virtual
+//! bus, the in-memory bus).
+//!
+//! ```
+//! use std::time::Duration;
+//! use can_bus::MemoryBus;
+//! use motion_control::Twist;
+//! use rmp_base::{BaseMode, CanLink, RmpBase, RmpBaseConfig};
+//!
+//! let bus = MemoryBus::new();
+//! let mut base = RmpBase::new(CanLink::new(bus.join()), RmpBaseConfig::default())?;
+//! base.request_mode(BaseMode::Tractor, Duration::ZERO);
+//! let mut now = Duration::ZERO;
+//! for _ in 0..3 {
+//!     base.set_velocity(Twist::new(0.3, 0.0), now); // from the planner / executive
+//!     // Nobody answers on this bus: after the response timeout tick() reports
+//!     // BaseError::Silent and keeps commanding zero.
+//!     let _ = base.tick(now);
+//!     now += base.config().command_period;
+//! }
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
+
+mod driver;
+mod link;
+mod odometry;
+
+pub use driver::{BaseError, BaseMode, BaseStatus, ConfigError, RmpBase, RmpBaseConfig, Tick};
+pub use link::{CanLink, LinkError, RmpLink, from_can, to_can};
+pub use odometry::Odometry;
+
+use std::time::{Duration, Instant};
+
+/// The wall-clock implementation of the driver's time base: time since construction.
+#[derive(Debug, Clone, Copy)]
+pub struct MonotonicClock {
+    origin: Instant,
+}
+
+impl Default for MonotonicClock {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl MonotonicClock {
+    /// A clock whose zero is now.
+    pub fn new() -> Self {
+        Self {
+            origin: Instant::now(),
+        }
+    }
+
+    /// Time since construction.
+    pub fn now(&self) -> Duration {
+        self.origin.elapsed()
+    }
+
+    /// Sleeps until `deadline` (returns at once if it has passed).
+    pub fn sleep_until(&self, deadline: Duration) {
+        let now = self.now();
+        if deadline > now {
+            std::thread::sleep(deadline - now);
+        }
+    }
+}

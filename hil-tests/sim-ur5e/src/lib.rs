@@ -1,1 +1,243 @@
-//! Simulated UR5e controller on loopback TCP.
+//! Simulated UR5e controller on loopback TCP, for hardware-in-the-loop tests.
+//!
+//! It serves what a PolyScope 5 controller serves: RTDE on 30004 (protocol 1 and 2, recipes,
+//! 500 Hz, several clients at once), the dashboard on 29999 with the exact reply strings,
+//! primary/secondary/real-time on 30001/30002/30003 (state streams; URScript programs with
+//! `movej`, `movel`, `stopj`, `stopl`, `speedj`, `sleep`, `rtde_set_watchdog`, ...), and the
+//! Robotiq URCap gripper socket on 63352. Motion follows the UR5e kinematics
+//! (`ur5e_kin::Ur5e`) and its joint speed limit. Protocol facts: `docs/ur5e.md`.
+//!
+//! Run it as its own process (`sim-ur5e --help`) or in-process:
+//!
+//! ```no_run
+//! let sim = sim_ur5e::Ur5eSim::start(sim_ur5e::SimConfig::ephemeral())?;
+//! println!("RTDE on {}", sim.ports().rtde);
+//! sim.trigger_protective_stop("test");
+//! # Ok::<(), std::io::Error>(())
+//! ```
+
+pub mod fields;
+pub mod gripper;
+pub mod primary;
+pub mod robot;
+mod server;
+pub mod urscript;
+
+use std::io;
+use std::net::{IpAddr, Ipv4Addr, SocketAddr, TcpStream};
+use std::sync::Arc;
+use std::sync::atomic::Ordering;
+use std::thread::JoinHandle;
+
+pub use robot::{RobotInit, Snapshot};
+use server::{PortKind, Shared, lock};
+pub use ur5e::rtde::ControllerVersion;
+
+/// Simulator settings.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SimConfig {
+    /// Address to listen on (IPv4 loopback: ur_rtde connects over IPv4 only).
+    pub bind_ip: IpAddr,
+    /// RTDE port (30004; 0 = any free port).
+    pub rtde_port: u16,
+    /// Dashboard port (29999).
+    pub dashboard_port: u16,
+    /// Primary port (30001).
+    pub primary_port: u16,
+    /// Secondary port (30002).
+    pub secondary_port: u16,
+    /// Real-time port (30003).
+    pub realtime_port: u16,
+    /// Robotiq URCap gripper port (63352).
+    pub gripper_port: u16,
+    /// Control rate (Hz): 500 on e-Series.
+    pub rate_hz: f64,
+    /// Version reported by RTDE `v` and the dashboard (5.21: ur_rtde exercises its dashboard
+    /// path from 5.6 on and avoids the 5.23-only fields below 5.23).
+    pub version: ControllerVersion,
+    /// `get serial number` reply (digits only).
+    pub serial_number: String,
+    /// `is in remote control` reply.
+    pub remote_control: bool,
+    /// Program files `load` accepts.
+    pub programs: Vec<String>,
+    /// Robot state at start.
+    pub init: RobotInit,
+    /// Width of an object between the gripper fingers (m), if any.
+    pub gripper_object_width_m: Option<f64>,
+}
+
+impl Default for SimConfig {
+    /// The real controller's ports on 127.0.0.1.
+    fn default() -> Self {
+        Self {
+            bind_ip: IpAddr::V4(Ipv4Addr::LOCALHOST),
+            rtde_port: 30004,
+            dashboard_port: 29999,
+            primary_port: 30001,
+            secondary_port: 30002,
+            realtime_port: 30003,
+            gripper_port: 63352,
+            rate_hz: 500.0,
+            version: ControllerVersion {
+                major: 5,
+                minor: 21,
+                bugfix: 0,
+                build: 1_210_631,
+            },
+            serial_number: "20235500001".into(),
+            remote_control: true,
+            programs: Vec::new(),
+            init: RobotInit::default(),
+            gripper_object_width_m: None,
+        }
+    }
+}
+
+impl SimConfig {
+    /// Every port 0 (the OS picks free ones), for tests running in parallel.
+    pub fn ephemeral() -> Self {
+        Self {
+            rtde_port: 0,
+            dashboard_port: 0,
+            primary_port: 0,
+            secondary_port: 0,
+            realtime_port: 0,
+            gripper_port: 0,
+            ..Self::default()
+        }
+    }
+}
+
+/// The addresses the simulator listens on.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct SimPorts {
+    /// RTDE.
+    pub rtde: SocketAddr,
+    /// Dashboard.
+    pub dashboard: SocketAddr,
+    /// Primary.
+    pub primary: SocketAddr,
+    /// Secondary.
+    pub secondary: SocketAddr,
+    /// Real-time.
+    pub realtime: SocketAddr,
+    /// Gripper.
+    pub gripper: SocketAddr,
+}
+
+/// A running simulator; dropping it stops every thread and closes every socket.
+pub struct Ur5eSim {
+    shared: Arc<Shared>,
+    ports: SimPorts,
+    threads: Vec<JoinHandle<()>>,
+}
+
+impl core::fmt::Debug for Ur5eSim {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.debug_struct("Ur5eSim")
+            .field("ports", &self.ports)
+            .finish_non_exhaustive()
+    }
+}
+
+impl Ur5eSim {
+    /// Binds every port and starts the control loop.
+    pub fn start(cfg: SimConfig) -> io::Result<Self> {
+        if !(cfg.rate_hz > 0.0 && cfg.rate_hz <= 10_000.0) {
+            return Err(io::Error::new(
+                io::ErrorKind::InvalidInput,
+                "rate_hz must be in (0, 10000]",
+            ));
+        }
+        let shared = Arc::new(Shared::new(cfg.clone()));
+        let mut threads = Vec::new();
+        let mut bind = |kind, port| -> io::Result<SocketAddr> {
+            let (addr, handle) = server::listen(&shared, kind, port)?;
+            threads.push(handle);
+            Ok(addr)
+        };
+        let ports = SimPorts {
+            rtde: bind(PortKind::Rtde, cfg.rtde_port)?,
+            dashboard: bind(PortKind::Dashboard, cfg.dashboard_port)?,
+            primary: bind(PortKind::Primary, cfg.primary_port)?,
+            secondary: bind(PortKind::Secondary, cfg.secondary_port)?,
+            realtime: bind(PortKind::Realtime, cfg.realtime_port)?,
+            gripper: bind(PortKind::Gripper, cfg.gripper_port)?,
+        };
+        let control = {
+            let shared = Arc::clone(&shared);
+            std::thread::Builder::new()
+                .name("sim-ur5e-control".into())
+                .spawn(move || server::control_loop(shared))?
+        };
+        threads.push(control);
+        Ok(Self {
+            shared,
+            ports,
+            threads,
+        })
+    }
+
+    /// Where it listens.
+    pub fn ports(&self) -> SimPorts {
+        self.ports
+    }
+
+    /// The newest published state.
+    pub fn snapshot(&self) -> Snapshot {
+        lock(&self.shared.published).snap
+    }
+
+    /// Control cycles that fell more than 5 periods behind (machine stalls).
+    pub fn overruns(&self) -> u64 {
+        self.shared.overruns.load(Ordering::Relaxed)
+    }
+
+    /// Fault injection: a protective stop, as after a collision.
+    pub fn trigger_protective_stop(&self, reason: &str) {
+        lock(&self.shared.ctl).robot.protective_stop(reason);
+    }
+
+    /// Fault injection: cuts every RTDE connection (a pulled cable as the client sees it).
+    pub fn cut_rtde_connections(&self) -> usize {
+        self.shared.cut(Some(PortKind::Rtde))
+    }
+
+    /// Fault injection: cuts every connection of every port.
+    pub fn cut_all_connections(&self) -> usize {
+        self.shared.cut(None)
+    }
+
+    /// Puts an object of this width between the gripper fingers (or removes it).
+    pub fn set_gripper_object(&self, width_m: Option<f64>) {
+        lock(&self.shared.ctl).robot.gripper.object_width_m = width_m;
+    }
+
+    /// Runs `f` on the robot model under the control lock (inspection, fault injection).
+    pub fn with_robot<R>(&self, f: impl FnOnce(&mut robot::RobotModel) -> R) -> R {
+        f(&mut lock(&self.shared.ctl).robot)
+    }
+}
+
+impl Drop for Ur5eSim {
+    fn drop(&mut self) {
+        self.shared.shutdown.store(true, Ordering::Release);
+        self.shared.tick.notify_all();
+        self.shared.cut(None);
+        // Wake the accept threads so they see the shutdown flag.
+        for addr in [
+            self.ports.rtde,
+            self.ports.dashboard,
+            self.ports.primary,
+            self.ports.secondary,
+            self.ports.realtime,
+            self.ports.gripper,
+        ] {
+            let _ = TcpStream::connect(addr);
+        }
+        for t in self.threads.drain(..) {
+            let _ = t.join();
+        }
+    }
+}

@@ -1,1 +1,338 @@
-//! FCN feasibility evaluator Psi: ONNX inference with tract.
+//! The feasibility evaluator Psi of the GROP paper (eq. 2-3, h = Psi(IM)) as ONNX inference on
+//! tract: a fully convolutional network turns a 64 x 32 overhead crop in front of an unloading
+//! target into a heatmap of the probability that the robot, sent to each cell, can unload there.
+//!
+//! The model is loaded once, its input shape fixed to one crop `[1, 1, 32, 64]`, optimised by
+//! tract, and then run without any allocation of ours: the input tensor is allocated at load time
+//! and refilled in place, results are copied into the caller's buffers. A batch (up to
+//! [`MAX_BATCH`], both sides of three targets) runs the one-crop plan per crop: tract's plans for
+//! batch > 1 of this network fall back to eager im2col and unfused adds and measured ~1.7x slower
+//! per crop than six single runs (docs/fcn.md), so batching buys nothing here. The uint8 -> float normalisation is part of the ONNX graph, so callers pass
+//! the crop exactly as `world::view::render_crop` returns it.
+//!
+//! ```no_run
+//! use fcn_infer::{FcnModel, CROP_CELLS};
+//! # fn main() -> Result<(), Box<dyn std::error::Error>> {
+//! let mut model = FcnModel::load(std::path::Path::new("models/psi-fcn.onnx"))?;
+//! let crop = [200u8; CROP_CELLS]; // from world::view::render_crop(&scene, target_x, side)
+//! let mut heatmap = [0.0f32; CROP_CELLS];
+//! model.predict(&crop, &mut heatmap)?;
+//! # Ok(()) }
+//! ```
+//!
+//! Far side: the network only knows near-side crops. The far half of an overhead view is rotated
+//! 180 degrees before inference and the prediction rotated back; [`overhead`] does both on the
+//! 64 x 64 camera image, so a heatmap cell can be placed in the world frame (docs/architecture.md).
+
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use tract_onnx::prelude::*;
+use tract_onnx::tract_hir::infer::Factoid;
+
+pub mod overhead;
+
+/// Rows of a crop and of a heatmap (0.0625 m each; row 0 touches the table's centre line).
+pub const CROP_ROWS: usize = 32;
+/// Columns of a crop and of a heatmap (0.0625 m each, 4 m in all, centred on the target).
+pub const CROP_COLS: usize = 64;
+/// Cells of a crop / heatmap, row-major `[row][col]`.
+pub const CROP_CELLS: usize = CROP_ROWS * CROP_COLS;
+/// Largest batch one call runs: both sides of three targets.
+pub const MAX_BATCH: usize = 6;
+
+/// Grayscale crop as rendered by `world::view::render_crop`.
+pub type Crop = [u8; CROP_CELLS];
+/// Heatmap cells in `[0, 1]`, same layout as the crop.
+pub type HeatmapCells = [f32; CROP_CELLS];
+
+/// Why a model file could not be loaded.
+#[derive(Debug, thiserror::Error)]
+pub enum ModelLoadError {
+    /// No file at the path.
+    #[error("FCN model file {path} does not exist")]
+    NotFound {
+        /// The path that was tried.
+        path: PathBuf,
+    },
+    /// The file exists but could not be read.
+    #[error("cannot read FCN model file {path}: {source}")]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// The operating system's error.
+        source: std::io::Error,
+    },
+    /// The bytes are not an ONNX model tract can parse.
+    #[error("FCN model file {path} is not a valid ONNX model: {reason}")]
+    Corrupt {
+        /// The file.
+        path: PathBuf,
+        /// tract's parse error.
+        reason: String,
+    },
+    /// The model's inputs or outputs are not one uint8 crop in, one float32 heatmap out, both
+    /// `[N, 1, 32, 64]`.
+    #[error(
+        "FCN model {path} has the wrong interface: {detail} (expected uint8 crop [N,1,32,64] -> float32 heatmap [N,1,32,64])"
+    )]
+    WrongInterface {
+        /// The file.
+        path: PathBuf,
+        /// What was found instead.
+        detail: String,
+    },
+    /// tract could not type, optimise or plan the model for a fixed batch size.
+    #[error("cannot prepare FCN model {path} for batch {batch}: {reason}")]
+    Prepare {
+        /// The file.
+        path: PathBuf,
+        /// Batch size being prepared.
+        batch: usize,
+        /// tract's error chain.
+        reason: String,
+    },
+}
+
+/// Why an inference call failed.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum InferError {
+    /// Batch size outside `1..=MAX_BATCH`.
+    #[error("batch of {0} crops; 1..={MAX_BATCH} are supported per call")]
+    BatchSize(usize),
+    /// Not as many output buffers as crops.
+    #[error("{crops} crops but {outputs} output heatmaps")]
+    OutputCount {
+        /// Crops given.
+        crops: usize,
+        /// Output buffers given.
+        outputs: usize,
+    },
+    /// tract failed while running the plan.
+    #[error("tract inference failed: {0}")]
+    Runtime(String),
+    /// The network produced a value that is not a probability (NaN or outside [0, 1]).
+    #[error("model produced a non-probability {value} at crop {crop}, cell {cell}")]
+    NotAProbability {
+        /// Index of the crop in the batch.
+        crop: usize,
+        /// Cell index (row * 64 + col).
+        cell: usize,
+        /// The value.
+        value: f32,
+    },
+}
+
+/// The loaded, optimised FCN: one fixed-shape plan, its session state and the input tensor we
+/// refill in place.
+pub struct FcnModel {
+    path: PathBuf,
+    state: TypedSimpleState,
+    input: Arc<Tensor>,
+}
+
+impl std::fmt::Debug for FcnModel {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("FcnModel")
+            .field("path", &self.path)
+            .finish_non_exhaustive()
+    }
+}
+
+impl FcnModel {
+    /// Loads an ONNX file, checks its interface and prepares the optimised one-crop plan.
+    pub fn load(path: &Path) -> Result<FcnModel, ModelLoadError> {
+        let bytes = std::fs::read(path).map_err(|source| {
+            if source.kind() == std::io::ErrorKind::NotFound {
+                ModelLoadError::NotFound {
+                    path: path.to_path_buf(),
+                }
+            } else {
+                ModelLoadError::Io {
+                    path: path.to_path_buf(),
+                    source,
+                }
+            }
+        })?;
+        Self::from_bytes(&bytes, path)
+    }
+
+    /// Like [`FcnModel::load`] from bytes already in memory; `origin` names them in errors.
+    pub fn from_bytes(bytes: &[u8], origin: &Path) -> Result<FcnModel, ModelLoadError> {
+        let path = origin.to_path_buf();
+        let model = tract_onnx::onnx()
+            .model_for_read(&mut &bytes[..])
+            .map_err(|e| ModelLoadError::Corrupt {
+                path: path.clone(),
+                reason: format!("{e:#}"),
+            })?;
+        check_declared_interface(&model, &path)?;
+        let (state, input) = prepare(&model, 1, &path)?;
+        log::info!("loaded FCN model {}", path.display());
+        Ok(FcnModel { path, state, input })
+    }
+
+    /// The file the model came from.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// Psi for one crop: `out[row * 64 + col]` is the success probability of that cell.
+    pub fn predict(&mut self, crop: &Crop, out: &mut HeatmapCells) -> Result<(), InferError> {
+        self.run_one(crop, out, 0)
+    }
+
+    /// Psi for up to [`MAX_BATCH`] crops in one call (e.g. both sides of three targets).
+    pub fn predict_batch(
+        &mut self,
+        crops: &[Crop],
+        out: &mut [HeatmapCells],
+    ) -> Result<(), InferError> {
+        if crops.is_empty() || crops.len() > MAX_BATCH {
+            return Err(InferError::BatchSize(crops.len()));
+        }
+        if out.len() != crops.len() {
+            return Err(InferError::OutputCount {
+                crops: crops.len(),
+                outputs: out.len(),
+            });
+        }
+        for (i, (crop, heat)) in crops.iter().zip(out.iter_mut()).enumerate() {
+            self.run_one(crop, heat, i)?;
+        }
+        Ok(())
+    }
+
+    fn run_one(
+        &mut self,
+        crop: &Crop,
+        out: &mut HeatmapCells,
+        index: usize,
+    ) -> Result<(), InferError> {
+        // The input tensor is ours alone between calls (tract drops its handle at the end of a
+        // run), so it is refilled in place; a fresh one is only made if that ever stops holding.
+        if Arc::get_mut(&mut self.input).is_none() {
+            self.input =
+                Arc::new(Tensor::zero::<u8>(&[1, 1, CROP_ROWS, CROP_COLS]).map_err(runtime)?);
+        }
+        let input = Arc::get_mut(&mut self.input)
+            .ok_or_else(|| InferError::Runtime("input tensor shared".into()))?;
+        let mut view = input.try_as_plain_ram_mut().map_err(runtime)?;
+        view.as_slice_mut::<u8>()
+            .map_err(runtime)?
+            .copy_from_slice(crop);
+        let outputs = self
+            .state
+            .run(tvec!(TValue::from_const(self.input.clone())))
+            .map_err(runtime)?;
+        let heat = outputs
+            .first()
+            .ok_or_else(|| InferError::Runtime("model returned no output".into()))?
+            .try_as_plain_ram()
+            .map_err(runtime)?
+            .as_slice::<f32>()
+            .map_err(runtime)?;
+        if heat.len() != CROP_CELLS {
+            return Err(InferError::Runtime(format!(
+                "output has {} values, expected {CROP_CELLS}",
+                heat.len()
+            )));
+        }
+        if let Some((cell, &value)) = heat
+            .iter()
+            .enumerate()
+            .find(|(_, v)| !(0.0..=1.0).contains(*v))
+        {
+            return Err(InferError::NotAProbability {
+                crop: index,
+                cell,
+                value,
+            });
+        }
+        out.copy_from_slice(heat);
+        Ok(())
+    }
+}
+
+fn runtime(e: impl std::fmt::Display) -> InferError {
+    InferError::Runtime(format!("{e:#}"))
+}
+
+/// Checks what the file itself declares: exactly one input (uint8 where a type is given, rank 4
+/// `[N,1,32,64]` where a shape is given) and one output.
+fn check_declared_interface(model: &InferenceModel, path: &Path) -> Result<(), ModelLoadError> {
+    let wrong = |detail: String| ModelLoadError::WrongInterface {
+        path: path.to_path_buf(),
+        detail,
+    };
+    let n_in = model
+        .input_outlets()
+        .map_err(|e| wrong(format!("{e:#}")))?
+        .len();
+    let n_out = model
+        .output_outlets()
+        .map_err(|e| wrong(format!("{e:#}")))?
+        .len();
+    if n_in != 1 || n_out != 1 {
+        return Err(wrong(format!("{n_in} inputs and {n_out} outputs")));
+    }
+    let fact = model.input_fact(0).map_err(|e| wrong(format!("{e:#}")))?;
+    if let Some(dt) = fact.datum_type.concretize()
+        && dt != u8::datum_type()
+    {
+        return Err(wrong(format!("input of type {dt:?}")));
+    }
+    if let Some(rank) = fact.shape.rank().concretize() {
+        if rank != 4 {
+            return Err(wrong(format!("input of rank {rank}")));
+        }
+        let expected = [
+            None,
+            Some(1),
+            Some(CROP_ROWS as i64),
+            Some(CROP_COLS as i64),
+        ];
+        for (axis, (dim, want)) in fact.shape.dims().zip(expected).enumerate() {
+            if let (Some(d), Some(w)) = (dim.concretize().and_then(|d| d.to_i64().ok()), want)
+                && d != w
+            {
+                return Err(wrong(format!("input axis {axis} of size {d}")));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Fixes the input to `[batch, 1, 32, 64]` u8, optimises, checks the output and plans.
+fn prepare(
+    model: &InferenceModel,
+    batch: usize,
+    path: &Path,
+) -> Result<(TypedSimpleState, Arc<Tensor>), ModelLoadError> {
+    let prep = |e: TractError| ModelLoadError::Prepare {
+        path: path.to_path_buf(),
+        batch,
+        reason: format!("{e:#}"),
+    };
+    let shape = [batch, 1, CROP_ROWS, CROP_COLS];
+    let typed = model
+        .clone()
+        .with_input_fact(0, u8::fact(shape).into())
+        .and_then(|m| m.into_optimized())
+        .map_err(prep)?;
+    let out_fact = typed.output_fact(0).map_err(prep)?;
+    let want: TVec<TDim> = shape.iter().map(|&d| d.to_dim()).collect();
+    if out_fact.datum_type != f32::datum_type() || out_fact.shape.to_tvec() != want {
+        return Err(ModelLoadError::WrongInterface {
+            path: path.to_path_buf(),
+            detail: format!(
+                "output {:?} {:?} for batch {batch}",
+                out_fact.datum_type, out_fact.shape
+            ),
+        });
+    }
+    let runnable = typed.into_runnable().map_err(prep)?;
+    let state = runnable.spawn().map_err(prep)?;
+    let input = Arc::new(Tensor::zero::<u8>(&shape).map_err(prep)?);
+    Ok((state, input))
+}

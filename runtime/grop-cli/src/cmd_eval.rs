@@ -1,9 +1,178 @@
-//! `grop eval`.
+//! `grop eval`: the paper's experiments. GROP and the baselines plan every evaluation task, each
+//! plan is executed in the trial simulator with navigation noise, and the results go to a CSV, a
+//! markdown summary and a Fig. 5-like SVG (see docs/experiments.md).
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use anyhow::Context;
+use experiments::{EvalConfig, HeatmapSet, SimulatedOracle, Summary, Workload};
+use planner::feasibility::FcnEvaluator;
+use planner::methods::{BaselineGoals, MethodKind};
+
+/// Which feasibility evaluator `Psi` feeds the planners.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Evaluator {
+    /// The trained FCN (`--model`).
+    Fcn,
+    /// The simulator as an oracle: an independent Monte-Carlo estimate of the ground truth.
+    Oracle,
+    /// The very ground truth that defines difficulty (an optimistic upper bound).
+    GroundTruth,
+}
+
+/// How the plan's feasibility combines its pairs'.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Aggregation {
+    /// Sum (the paper).
+    Sum,
+    /// Product.
+    Product,
+}
+
+/// Baselines' navigation goals.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Goals {
+    /// Uniform among obstacle-free candidate cells (the paper).
+    Paper,
+    /// The authors' code: FCN-nonzero cells; Satisficing in a fixed region.
+    Authors,
+}
 
 /// Arguments of `grop eval`.
 #[derive(clap::Args, Debug)]
-pub struct Args {}
+pub struct Args {
+    /// Folder for eval_tasks.csv, summary.md and fig5.svg.
+    #[arg(long, default_value = "docs/experiments")]
+    pub out_dir: PathBuf,
+    /// Ground-truth cache file (simulated once, reused while the settings match).
+    #[arg(long, default_value = "target/grop-eval/ground-truth.json")]
+    pub cache: PathBuf,
+    /// Feasibility evaluator for the planners.
+    #[arg(long, value_enum, default_value_t = Evaluator::Oracle)]
+    pub evaluator: Evaluator,
+    /// FCN model file (with `--evaluator fcn`).
+    #[arg(long, default_value = "models/psi-fcn.onnx")]
+    pub model: PathBuf,
+    /// Robot file (TOML); the paper's robot when absent.
+    #[arg(long)]
+    pub robot: Option<PathBuf>,
+    /// Seed of scenes, goal draws, tie-breaks and noise.
+    #[arg(long, default_value_t = 2022)]
+    pub seed: u64,
+    /// Scenes per chair count (15, 20, 25 chairs).
+    #[arg(long, default_value_t = 10)]
+    pub scenes_per_chair_count: usize,
+    /// Tasks (of 3 objects) per scene.
+    #[arg(long, default_value_t = 14)]
+    pub tasks_per_scene: usize,
+    /// Robot speed of the main comparison (m/s).
+    #[arg(long, default_value_t = 0.4)]
+    pub speed: f64,
+    /// Speeds of the Table I sweep (m/s), comma-separated; empty to skip.
+    #[arg(long, value_delimiter = ',', default_value = "0.2,0.4,0.8")]
+    pub sweep_speeds: Vec<f64>,
+    /// Methods of the main comparison, comma-separated.
+    #[arg(long, value_delimiter = ',', default_value = "grop,satisficing,petlon,dvh,fcn-planning")]
+    pub methods: Vec<String>,
+    /// F(p) = sum (paper) or product of the pairs' feasibilities.
+    #[arg(long, value_enum, default_value_t = Aggregation::Sum)]
+    pub aggregation: Aggregation,
+    /// GROP's Smp draws per (target, side), keeping the best (paper: 1).
+    #[arg(long, default_value_t = 1)]
+    pub goal_draws: usize,
+    /// Baselines' goal choice.
+    #[arg(long, value_enum, default_value_t = Goals::Paper)]
+    pub baseline_goals: Goals,
+    /// Trials per cell of the ground truth and the oracle.
+    #[arg(long, default_value_t = 5)]
+    pub trials_per_cell: u16,
+}
 
-pub fn run(_args: Args) -> anyhow::Result<()> {
-    anyhow::bail!("`grop eval` is not built yet")
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let started = Instant::now();
+    let robot = match &args.robot {
+        Some(p) => world::RobotConfig::load(p).with_context(|| format!("loading robot file {}", p.display()))?,
+        None => world::RobotConfig::default(),
+    };
+    let methods = args
+        .methods
+        .iter()
+        .map(|m| MethodKind::parse(m).with_context(|| format!("unknown method {m:?}")))
+        .collect::<anyhow::Result<Vec<_>>>()?;
+    let mut cfg = EvalConfig {
+        seed: args.seed,
+        scenes_per_chair_count: args.scenes_per_chair_count,
+        tasks_per_scene: args.tasks_per_scene,
+        methods,
+        main_speed_mps: args.speed,
+        sweep_speeds_mps: args.sweep_speeds.clone(),
+        gt_trials_per_cell: args.trials_per_cell,
+        robot: robot.clone(),
+        ..EvalConfig::default()
+    };
+    cfg.planner = planner::methods::PlannerConfig {
+        success_bonus_r: robot.success_bonus_r,
+        aggregation: match args.aggregation {
+            Aggregation::Sum => grop_select_aggregation(false),
+            Aggregation::Product => grop_select_aggregation(true),
+        },
+        goal_draws: args.goal_draws,
+        baseline_goals: match args.baseline_goals {
+            Goals::Paper => BaselineGoals::Paper,
+            Goals::Authors => BaselineGoals::AuthorsCode,
+        },
+        ..cfg.planner
+    };
+    cfg.check()?;
+
+    let workload = Workload::build(&cfg);
+    log::info!("{} scenes, {} tasks; {} (speed, method) runs", workload.scenes.len(), workload.tasks.len(), cfg.runs().len());
+    let truth = experiments::ground_truth(&cfg, &workload, Some(&args.cache)).context("ground truth")?;
+    log::info!("ground truth ready after {:.1} s", started.elapsed().as_secs_f64());
+    let psi: HeatmapSet = match args.evaluator {
+        Evaluator::GroundTruth => truth.clone(),
+        Evaluator::Oracle => {
+            let mut oracle = SimulatedOracle::new(args.trials_per_cell, args.seed ^ 0x6f72_6163);
+            experiments::evaluate_heatmaps(&workload, &mut oracle)?
+        }
+        Evaluator::Fcn => {
+            let mut fcn = FcnEvaluator::load(&args.model)
+                .with_context(|| format!("loading FCN model {}", args.model.display()))?;
+            experiments::evaluate_heatmaps(&workload, &mut fcn)?
+        }
+    };
+    log::info!("Psi ({:?}) ready after {:.1} s", args.evaluator, started.elapsed().as_secs_f64());
+    let records = experiments::run(&cfg, &workload, &psi, &truth)?;
+    let summary = Summary::from_records(&cfg, &records);
+
+    let csv = args.out_dir.join("eval_tasks.csv");
+    experiments::write_csv(&csv, &records)?;
+    let mut md = format!(
+        "<!-- written by `grop eval` ({} tasks, evaluator {:?}, seed {}, aggregation {:?}, goal draws {}, baseline goals {:?}) -->\n\n",
+        workload.tasks.len(),
+        args.evaluator,
+        args.seed,
+        args.aggregation,
+        args.goal_draws,
+        args.baseline_goals
+    );
+    md.push_str(&summary.markdown(&cfg));
+    let md_path = args.out_dir.join("summary.md");
+    experiments::write_file(&md_path, &md)?;
+    let svg = args.out_dir.join("fig5.svg");
+    experiments::plot::fig5_svg(&summary, &cfg.methods, &svg)?;
+    println!("{}", summary.markdown(&cfg));
+    println!(
+        "wrote {}, {}, {} in {:.1} s",
+        csv.display(),
+        md_path.display(),
+        svg.display(),
+        started.elapsed().as_secs_f64()
+    );
+    Ok(())
+}
+
+fn grop_select_aggregation(product: bool) -> planner::methods::Aggregation {
+    if product { planner::methods::Aggregation::Product } else { planner::methods::Aggregation::Sum }
 }

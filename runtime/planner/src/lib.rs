@@ -1,1 +1,6 @@
 //! Task planner, GROP and baselines.
+pub mod costs;
+pub mod feasibility;
+pub mod methods;
+pub mod problem;
+pub mod task;

@@ -1,0 +1,627 @@
+//! The RMP v3 base driver: one [`RmpBase::tick`] per command period.
+
+use std::time::Duration;
+
+use log::{debug, info, warn};
+use motion_control::limiter::{LimitsError, TwistLimiter, TwistLimits};
+use motion_control::mode::{ModeSequencer, ModeStep};
+use motion_control::watchdog::Watchdog;
+use motion_control::Twist;
+use rmp_codec::faults::FaultStatus;
+use rmp_codec::feedback::{
+    self, FeedbackAssembler, FeedbackBitmaps, FeedbackError, FeedbackItem, FeedbackLayout,
+    FeedbackSet,
+};
+use rmp_codec::v3::{
+    ConfigCommand, FirmwareProfile, ModeRequest, MotionCommand, NvmFloat, OperationalState,
+};
+
+use crate::link::{LinkError, RmpLink};
+use crate::odometry::{DeadReckoning, Integrators, Odometry};
+
+/// Modes the driver can ask for.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum BaseMode {
+    /// Powered, wheels not driven.
+    Standby,
+    /// Driving: the only mode in which motion commands move the base.
+    Tractor,
+    /// Drive disabled.
+    Disable,
+}
+
+impl BaseMode {
+    fn request(self) -> ModeRequest {
+        match self {
+            BaseMode::Standby => ModeRequest::Standby,
+            BaseMode::Tractor => ModeRequest::Tractor,
+            BaseMode::Disable => ModeRequest::Disable,
+        }
+    }
+
+    fn reported_as(self) -> OperationalState {
+        match self {
+            BaseMode::Standby => OperationalState::Standby,
+            BaseMode::Tractor => OperationalState::Tractor,
+            BaseMode::Disable => OperationalState::DisablePower,
+        }
+    }
+}
+
+/// Driver settings. `Default` is what an RMP 210/220/440 with factory NVM needs at 50 Hz.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RmpBaseConfig {
+    /// Configuration-command numbering of the base's firmware.
+    pub profile: FirmwareProfile,
+    /// Period at which the caller calls [`RmpBase::tick`]; the limiter assumes it when the
+    /// measured period is implausible. 20 ms (50 Hz, the design's base rate).
+    pub command_period: Duration,
+    /// Velocity targets older than this are stale and the base is ramped to zero. 100 ms.
+    pub input_timeout: Duration,
+    /// No complete feedback set for this long means the base stopped answering. 250 ms (the
+    /// base answers every command, so this is about 12 missed replies at 50 Hz and well inside
+    /// the base's own 0.5 s loss-of-command timeout).
+    pub response_timeout: Duration,
+    /// Resend a mode request this often until the base reports the mode. 100 ms.
+    pub mode_resend: Duration,
+    /// Give up on a mode request after this long. 2 s.
+    pub mode_timeout: Duration,
+    /// Speed and acceleration limits applied before normalisation.
+    pub limits: TwistLimits,
+    /// Feedback items to ask for; written to the base at start-up (NVM may hold anything).
+    /// Must include the operational state and the fault words.
+    pub feedback: FeedbackBitmaps,
+    /// Skip writing the feedback bitmaps (when the base is known to hold `feedback`).
+    pub assume_feedback_configured: bool,
+    /// +1 when the base's positive yaw (command and differential wheel velocity) is
+    /// counter-clockwise, -1 when clockwise (sources disagree, reference §1.9 item 4).
+    pub yaw_sign: f64,
+    /// Velocity limit used to normalise commands until the base reports its own, m/s
+    /// (factory NVM: 2.2352).
+    pub fallback_velocity_limit_mps: f32,
+    /// Yaw-rate limit used to normalise until the base reports its own, rad/s (factory: 3.0).
+    pub fallback_yaw_rate_limit_radps: f32,
+    /// Track width for heading from wheel positions until the base reports its own, m.
+    pub fallback_track_width_m: f64,
+}
+
+impl Default for RmpBaseConfig {
+    fn default() -> Self {
+        Self {
+            profile: FirmwareProfile::SegwayInc2014,
+            command_period: Duration::from_millis(20),
+            input_timeout: Duration::from_millis(100),
+            response_timeout: Duration::from_millis(250),
+            mode_resend: Duration::from_millis(100),
+            mode_timeout: Duration::from_secs(2),
+            limits: TwistLimits::default(),
+            feedback: FeedbackBitmaps::DEFAULT,
+            assume_feedback_configured: false,
+            yaw_sign: 1.0,
+            fallback_velocity_limit_mps: NvmFloat::MaxVelocityMps.default_value(),
+            fallback_yaw_rate_limit_radps: NvmFloat::MaxTurnRateRadps.default_value(),
+            fallback_track_width_m: NvmFloat::TrackWidthM.default_value() as f64,
+        }
+    }
+}
+
+/// Why a configuration was refused.
+#[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum ConfigError {
+    /// A limit is negative or not finite.
+    #[error("rmp-base limits: {0}")]
+    Limits(#[from] LimitsError),
+    /// A duration is zero where it must not be; names the field.
+    #[error("rmp-base config: {0} must be greater than zero")]
+    ZeroDuration(&'static str),
+    /// `yaw_sign` is not +1 or -1.
+    #[error("rmp-base config: yaw_sign must be +1 or -1, got {0}")]
+    YawSign(f64),
+    /// A fallback limit or track width is not a positive finite number; names the field.
+    #[error("rmp-base config: {0} must be finite and > 0")]
+    Fallback(&'static str),
+    /// The feedback selection lacks an item the driver needs.
+    #[error("rmp-base config: feedback bitmaps must include {0:?}")]
+    MissingFeedback(FeedbackItem),
+    /// The firmware has fewer feedback bitmaps than the selection uses.
+    #[error("rmp-base config: firmware {profile:?} has {available} feedback bitmaps, bitmap {used} is used")]
+    FeedbackBitmapUnavailable {
+        /// The profile.
+        profile: FirmwareProfile,
+        /// Bitmaps it has.
+        available: u8,
+        /// 1-based bitmap that is used.
+        used: u8,
+    },
+}
+
+impl RmpBaseConfig {
+    /// Checks every field.
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        self.limits.validate()?;
+        for (name, d) in [
+            ("command_period", self.command_period),
+            ("input_timeout", self.input_timeout),
+            ("response_timeout", self.response_timeout),
+            ("mode_resend", self.mode_resend),
+            ("mode_timeout", self.mode_timeout),
+        ] {
+            if d.is_zero() {
+                return Err(ConfigError::ZeroDuration(name));
+            }
+        }
+        if self.yaw_sign != 1.0 && self.yaw_sign != -1.0 {
+            return Err(ConfigError::YawSign(self.yaw_sign));
+        }
+        let positive = |v: f64| v.is_finite() && v > 0.0;
+        if !positive(self.fallback_velocity_limit_mps as f64) {
+            return Err(ConfigError::Fallback("fallback_velocity_limit_mps"));
+        }
+        if !positive(self.fallback_yaw_rate_limit_radps as f64) {
+            return Err(ConfigError::Fallback("fallback_yaw_rate_limit_radps"));
+        }
+        if !positive(self.fallback_track_width_m) {
+            return Err(ConfigError::Fallback("fallback_track_width_m"));
+        }
+        for item in [
+            FeedbackItem::OperationalState,
+            FeedbackItem::FaultStatusWord1,
+            FeedbackItem::FaultStatusWord2,
+            FeedbackItem::FaultStatusWord3,
+            FeedbackItem::FaultStatusWord4,
+        ] {
+            if !self.feedback.contains(item) {
+                return Err(ConfigError::MissingFeedback(item));
+            }
+        }
+        let available = self.profile.feedback_bitmap_count();
+        if let Some(used) = (0..4u8).rev().find(|i| self.feedback.words()[*i as usize] != 0)
+            && used >= available
+        {
+            return Err(ConfigError::FeedbackBitmapUnavailable {
+                profile: self.profile,
+                available,
+                used: used + 1,
+            });
+        }
+        Ok(())
+    }
+}
+
+/// Why a tick reports trouble. The driver has still done its safe action for the tick
+/// (commanded zero where the variant says so); the condition is re-reported every tick while
+/// it lasts.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum BaseError {
+    /// No feedback at all from the base for longer than the response timeout. Motion commands
+    /// are zero until it answers again.
+    #[error(
+        "RMP base not answering: no feedback for {silent_for:?} (timeout {timeout:?}); commanding zero velocity"
+    )]
+    Silent {
+        /// Time since the last complete feedback set (or since start).
+        silent_for: Duration,
+        /// The response timeout.
+        timeout: Duration,
+    },
+    /// Frames arrive but no complete feedback set could be read for longer than the response
+    /// timeout (feedback layout mismatch, corrupted frames). Motion commands are zero.
+    #[error(
+        "RMP base feedback unreadable for {silent_for:?}: {last_error} (expected {expected_frames} frames per set); commanding zero velocity"
+    )]
+    FeedbackUnreadable {
+        /// Time since the last complete set.
+        silent_for: Duration,
+        /// The last assembly error.
+        last_error: FeedbackError,
+        /// Frames per set in the layout the driver expects.
+        expected_frames: usize,
+    },
+    /// The base did not report the requested mode in time.
+    #[error("RMP base did not enter {wanted:?} within {timeout:?} (it reports {reported:?})")]
+    ModeTimeout {
+        /// The mode asked for.
+        wanted: BaseMode,
+        /// The last reported operational state.
+        reported: Option<OperationalState>,
+        /// The mode timeout.
+        timeout: Duration,
+    },
+    /// The base reports faults that stop motion.
+    #[error("RMP base faulted ({}): motion is stopped", describe(.faults))]
+    Faulted {
+        /// Fault status words 1..4.
+        faults: FaultStatus,
+    },
+    /// The link refused a frame.
+    #[error("RMP link: {0}")]
+    Link(#[from] LinkError),
+}
+
+fn describe(faults: &FaultStatus) -> String {
+    let names: Vec<&str> = faults.active().map(|b| b.name).collect();
+    if names.is_empty() {
+        format!("fault words {:08x?}", faults.words())
+    } else {
+        names.join(", ")
+    }
+}
+
+/// The base as last reported.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BaseStatus {
+    /// Operational state, once a set arrived.
+    pub state: Option<OperationalState>,
+    /// Fault words.
+    pub faults: FaultStatus,
+    /// Minimum propulsion battery state of charge, %, if reported.
+    pub battery_soc_pct: Option<f32>,
+    /// Velocity limit the base normalises with, m/s (reported or fallback).
+    pub velocity_limit_mps: f32,
+    /// Yaw-rate limit the base normalises with, rad/s (reported or fallback).
+    pub yaw_rate_limit_radps: f32,
+    /// Clock time of the last complete feedback set.
+    pub last_feedback: Option<Duration>,
+    /// Complete feedback sets received.
+    pub feedback_sets: u64,
+    /// Feedback frames that could not be assembled.
+    pub feedback_errors: u64,
+    /// Frames from the link that were neither feedback nor ignorable.
+    pub receive_errors: u64,
+}
+
+/// What one tick did.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Tick {
+    /// The velocity commanded this tick (after limits), SI units.
+    pub commanded: Twist,
+    /// True when the velocity target was stale (or never set) and the driver ramped to zero.
+    pub input_stale: bool,
+    /// Complete feedback sets taken in this tick.
+    pub feedback_sets: u32,
+    /// A mode request was confirmed this tick.
+    pub mode_reached: Option<BaseMode>,
+}
+
+/// Start-up: write the feedback bitmaps one per tick, then drop one tick of replies.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Startup {
+    WriteBitmap(u8),
+    Settle,
+    Running,
+}
+
+/// The driver. Owns the link; the caller owns the clock and calls [`tick`](Self::tick) once per
+/// command period with the current monotonic time. Nothing allocates after construction.
+pub struct RmpBase<L> {
+    link: L,
+    config: RmpBaseConfig,
+    startup: Startup,
+    limiter: TwistLimiter,
+    target: Twist,
+    input_watchdog: Watchdog,
+    modes: ModeSequencer<OperationalState>,
+    mode_target: Option<BaseMode>,
+    assembler: FeedbackAssembler,
+    last_feedback_error: Option<FeedbackError>,
+    started_at: Option<Duration>,
+    last_tick: Option<Duration>,
+    status: BaseStatus,
+    track_width_m: f64,
+    odometry: DeadReckoning,
+}
+
+fn us(d: Duration) -> u64 {
+    u64::try_from(d.as_micros()).unwrap_or(u64::MAX)
+}
+
+impl<L: RmpLink> RmpBase<L> {
+    /// A driver on `link`; validates the configuration. Sends nothing until the first tick.
+    pub fn new(link: L, config: RmpBaseConfig) -> Result<Self, ConfigError> {
+        config.validate()?;
+        let layout = FeedbackLayout::User(config.feedback);
+        Ok(Self {
+            link,
+            startup: if config.assume_feedback_configured {
+                Startup::Running
+            } else {
+                Startup::WriteBitmap(0)
+            },
+            limiter: TwistLimiter::new(config.limits),
+            target: Twist::ZERO,
+            input_watchdog: Watchdog::new(us(config.input_timeout)),
+            modes: ModeSequencer::new(us(config.mode_resend), us(config.mode_timeout)),
+            mode_target: None,
+            assembler: FeedbackAssembler::new(layout),
+            last_feedback_error: None,
+            started_at: None,
+            last_tick: None,
+            status: BaseStatus {
+                state: None,
+                faults: FaultStatus::CLEAR,
+                battery_soc_pct: None,
+                velocity_limit_mps: config.fallback_velocity_limit_mps,
+                yaw_rate_limit_radps: config.fallback_yaw_rate_limit_radps,
+                last_feedback: None,
+                feedback_sets: 0,
+                feedback_errors: 0,
+                receive_errors: 0,
+            },
+            track_width_m: config.fallback_track_width_m,
+            odometry: DeadReckoning::default(),
+            config,
+        })
+    }
+
+    /// Sets the velocity target (SI, counter-clockwise yaw) and marks the input fresh at `now`.
+    /// Non-finite values count as a stop.
+    pub fn set_velocity(&mut self, target: Twist, now: Duration) {
+        self.target = target;
+        self.input_watchdog.feed(us(now));
+    }
+
+    /// Asks for a mode; [`tick`](Self::tick) sends and resends the request and reports the
+    /// outcome ([`Tick::mode_reached`] or [`BaseError::ModeTimeout`]).
+    pub fn request_mode(&mut self, mode: BaseMode, now: Duration) {
+        self.mode_target = Some(mode);
+        self.modes.request(mode.reported_as(), us(now));
+    }
+
+    /// The base's status as last reported.
+    pub fn status(&self) -> &BaseStatus {
+        &self.status
+    }
+
+    /// Dead-reckoned pose and reported velocity.
+    pub fn odometry(&self) -> &Odometry {
+        &self.odometry.odometry
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &RmpBaseConfig {
+        &self.config
+    }
+
+    /// The link (for statistics or to shut it down).
+    pub fn link_mut(&mut self) -> &mut L {
+        &mut self.link
+    }
+
+    /// True once the start-up configuration is written and the base is in tractor mode.
+    pub fn is_driving(&self) -> bool {
+        self.startup == Startup::Running && self.status.state == Some(OperationalState::Tractor)
+    }
+
+    /// One command period: read feedback, advance the mode sequence, send one command.
+    pub fn tick(&mut self, now: Duration) -> Result<Tick, BaseError> {
+        let started_at = *self.started_at.get_or_insert(now);
+        let period = self.config.command_period;
+        let dt = match self.last_tick {
+            Some(t) => now.saturating_sub(t).min(4 * period),
+            None => period,
+        };
+        self.last_tick = Some(now);
+
+        let feedback_sets = self.drain_feedback(now);
+
+        let mut mode_reached = None;
+        let mut mode_error = None;
+        let mut sent_config = false;
+        match self.startup {
+            Startup::WriteBitmap(index) => {
+                let bitmap = self.config.feedback.words()[index as usize];
+                self.send_config(ConfigCommand::SetFeedbackBitmap { index, bitmap })?;
+                sent_config = true;
+                self.startup = if index + 1 < self.config.profile.feedback_bitmap_count() {
+                    Startup::WriteBitmap(index + 1)
+                } else {
+                    Startup::Settle
+                };
+            }
+            Startup::Settle => {
+                // Replies written before the layout change may be in either layout: drop them.
+                self.assembler.reset();
+                self.status.last_feedback = None;
+                self.started_at = Some(now);
+                self.startup = Startup::Running;
+            }
+            Startup::Running => match self.modes.poll(us(now)) {
+                ModeStep::Send(_) => {
+                    if let Some(mode) = self.mode_target {
+                        self.send_config(ConfigCommand::SetOperationalMode(mode.request()))?;
+                        sent_config = true;
+                    }
+                }
+                ModeStep::Reached(_) => {
+                    mode_reached = self.mode_target.take();
+                    info!("RMP base reports {:?}", mode_reached);
+                }
+                ModeStep::TimedOut { reported, .. } => {
+                    if let Some(wanted) = self.mode_target.take() {
+                        mode_error = Some(BaseError::ModeTimeout {
+                            wanted,
+                            reported,
+                            timeout: self.config.mode_timeout,
+                        });
+                    }
+                }
+                ModeStep::Idle | ModeStep::Waiting => {}
+            },
+        }
+
+        let since = self.status.last_feedback.or(self.started_at).unwrap_or(started_at);
+        let silent_for = now.saturating_sub(since);
+        let silent = silent_for > self.config.response_timeout;
+
+        // Decide the velocity: zero unless the input is fresh, the base answers, drives, and
+        // reports no stopping fault.
+        let input_stale = self.input_watchdog.is_stale(us(now));
+        let faulted = self.status.faults.stops_motion();
+        let may_drive = !silent && !faulted && self.is_driving();
+        let wanted = if input_stale || !may_drive {
+            Twist::ZERO
+        } else {
+            self.target
+        };
+        if silent {
+            // The base may have restarted meanwhile: do not difference across the gap.
+            self.odometry.rebase();
+        }
+        if !may_drive {
+            // Not driving: the base is not moving on our commands, so restart ramps from rest.
+            self.limiter.reset_to(Twist::ZERO);
+        }
+        let commanded = self.limiter.step(wanted, dt.as_secs_f32());
+
+        if !sent_config {
+            // The motion frame is also the keep-alive and the prompt for feedback.
+            let v = (commanded.speed_mps / self.status.velocity_limit_mps).clamp(-1.0, 1.0);
+            let w = (self.config.yaw_sign as f32 * commanded.yaw_rate_radps
+                / self.status.yaw_rate_limit_radps)
+                .clamp(-1.0, 1.0);
+            let motion = MotionCommand::new(v, w).unwrap_or(MotionCommand::ZERO);
+            self.link.send(&motion.encode())?;
+        }
+
+        if let Some(e) = mode_error {
+            return Err(e);
+        }
+        if silent && self.startup == Startup::Running {
+            // An error since the last good set means frames arrive but do not assemble.
+            return Err(match self.last_feedback_error {
+                Some(last_error) => BaseError::FeedbackUnreadable {
+                    silent_for,
+                    last_error,
+                    expected_frames: self.assembler.layout().frame_count(),
+                },
+                None => BaseError::Silent {
+                    silent_for,
+                    timeout: self.config.response_timeout,
+                },
+            });
+        }
+        if faulted {
+            return Err(BaseError::Faulted {
+                faults: self.status.faults,
+            });
+        }
+        Ok(Tick {
+            commanded,
+            input_stale,
+            feedback_sets,
+            mode_reached,
+        })
+    }
+
+    fn send_config(&mut self, command: ConfigCommand) -> Result<(), BaseError> {
+        // Every command the driver builds is valid for its profile (validated config).
+        match command.encode(self.config.profile) {
+            Ok(frame) => Ok(self.link.send(&frame)?),
+            Err(e) => {
+                warn!("RMP command {command:?} not encodable: {e}");
+                Ok(())
+            }
+        }
+    }
+
+    /// Reads everything waiting; returns the number of complete sets.
+    fn drain_feedback(&mut self, now: Duration) -> u32 {
+        let mut sets = 0;
+        // Bounded: at most a few sets' worth per tick, so a babbling bus cannot stall the loop.
+        for _ in 0..4 * feedback::MAX_FRAMES {
+            let frame = match self.link.try_recv() {
+                Ok(Some(frame)) => frame,
+                Ok(None) => break,
+                Err(e) => {
+                    self.status.receive_errors += 1;
+                    debug!("RMP link receive: {e}");
+                    break;
+                }
+            };
+            if !feedback::is_feedback_id(frame.id()) {
+                continue; // other hosts' commands, other devices
+            }
+            if self.startup != Startup::Running {
+                continue;
+            }
+            match self.assembler.push(&frame) {
+                Ok(Some(set)) => {
+                    sets += 1;
+                    self.last_feedback_error = None;
+                    self.take_feedback(&set, now);
+                }
+                Ok(None) => {}
+                Err(e) => {
+                    self.status.feedback_errors += 1;
+                    self.last_feedback_error = Some(e);
+                    debug!("RMP feedback: {e}");
+                }
+            }
+        }
+        sets
+    }
+
+    fn take_feedback(&mut self, set: &FeedbackSet, now: Duration) {
+        let s = &mut self.status;
+        s.last_feedback = Some(now);
+        s.feedback_sets += 1;
+        if let Some(state) = set.operational_state() {
+            if s.state != Some(state) {
+                info!("RMP base state {:?} -> {:?}", s.state, state);
+            }
+            s.state = Some(state);
+            self.modes.on_reported(state);
+        }
+        if let Some(faults) = set.fault_status() {
+            if faults != s.faults && faults.stops_motion() {
+                warn!("RMP base faulted: {}", describe(&faults));
+            }
+            s.faults = faults;
+        }
+        let positive = |v: Option<f32>| v.filter(|x| x.is_finite() && *x > 0.0);
+        if let Some(v) = positive(set.get_f32(FeedbackItem::VelocityLimit)) {
+            s.velocity_limit_mps = v;
+        }
+        if let Some(w) = positive(set.get_f32(FeedbackItem::YawRateLimit)) {
+            s.yaw_rate_limit_radps = w;
+        }
+        if let Some(t) = positive(set.get_f32(FeedbackItem::FramTrackWidth)) {
+            self.track_width_m = t as f64;
+        }
+        s.battery_soc_pct = set
+            .get_f32(FeedbackItem::MinPropulsionBattSoc)
+            .filter(|v| v.is_finite());
+
+        let yaw_sign = self.config.yaw_sign;
+        let f = |item| set.get_f32(item).map(f64::from).filter(|v| v.is_finite());
+        let o = &mut self.odometry.odometry;
+        let previous_stamp = o.stamp;
+        o.stamp = now;
+        o.speed_mps = f(FeedbackItem::LinearVelocity).unwrap_or(0.0);
+        o.yaw_rate_radps = yaw_sign * f(FeedbackItem::DifferentialWheelVelocity).unwrap_or(0.0);
+        let first_set = s.feedback_sets == 1;
+        let wheels = (
+            f(FeedbackItem::LinearPosition),
+            f(FeedbackItem::RightFrontPosition),
+            f(FeedbackItem::LeftFrontPosition),
+            f(FeedbackItem::RightRearPosition),
+            f(FeedbackItem::LeftRearPosition),
+        );
+        if let (Some(linear_m), Some(rf), Some(lf), Some(rr), Some(lr)) = wheels {
+            self.odometry.update(
+                Integrators {
+                    linear_m,
+                    right_m: (rf + rr) / 2.0,
+                    left_m: (lf + lr) / 2.0,
+                },
+                self.track_width_m,
+            );
+        } else if !first_set {
+            // No integrators in the selected feedback: integrate the reported velocities.
+            let dt = now.saturating_sub(previous_stamp).as_secs_f64();
+            self.odometry.integrate_velocity(dt);
+        }
+    }
+}

@@ -1,0 +1,787 @@
+//! The RTDE client: protocol 2 negotiation, recipes, start/pause, newest-package-wins receive.
+//!
+//! Synchronous by design: the arm's cyclic executive calls [`RtdeClient::receive_latest`] once
+//! per cycle and the controller's 500 Hz stream is its clock. Buffers are allocated when the
+//! client and its recipes are set up; the steady-state receive and send paths reuse them.
+
+use std::io::{self, Read, Write};
+use std::net::{SocketAddr, TcpStream, ToSocketAddrs};
+use std::time::{Duration, Instant};
+
+use thiserror::Error;
+
+use super::wire::{
+    self, ControllerVersion, FrameError, PackageType, RtdeType, RtdeValue, SetupField, TextLevel,
+    TextMessage, ValueDecodeError,
+};
+
+/// Default RTDE port of a UR controller.
+pub const RTDE_PORT: u16 = 30004;
+
+/// Receive buffer size: two maximum-size packages, so a full one always fits after compaction.
+const RX_BUF_LEN: usize = 2 * (u16::MAX as usize + 1);
+
+/// Timeouts of an RTDE connection.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RtdeTimeouts {
+    /// TCP connect.
+    pub connect: Duration,
+    /// Wait for the reply to a setup request.
+    pub reply: Duration,
+    /// Write of one package.
+    pub write: Duration,
+}
+
+impl Default for RtdeTimeouts {
+    fn default() -> Self {
+        Self {
+            connect: Duration::from_secs(2),
+            reply: Duration::from_secs(2),
+            write: Duration::from_millis(500),
+        }
+    }
+}
+
+/// Errors that end an RTDE connection or a request on it.
+#[derive(Debug, Error)]
+#[non_exhaustive]
+pub enum RtdeLinkError {
+    /// The socket failed (reset, refused, ...).
+    #[error("RTDE connection to {addr}: {source}")]
+    Io {
+        /// Controller address.
+        addr: SocketAddr,
+        /// The underlying error.
+        source: io::Error,
+    },
+    /// The controller closed the connection.
+    #[error("RTDE connection to {addr} closed by the controller")]
+    Closed {
+        /// Controller address.
+        addr: SocketAddr,
+    },
+    /// No (matching) package arrived in time.
+    #[error("RTDE {what} from {addr}: no answer within {waited:?}")]
+    Timeout {
+        /// Controller address.
+        addr: SocketAddr,
+        /// What was awaited.
+        what: &'static str,
+        /// How long.
+        waited: Duration,
+    },
+    /// The byte stream cannot be framed any more.
+    #[error("RTDE stream from {addr} is corrupt: {source}")]
+    Frame {
+        /// Controller address.
+        addr: SocketAddr,
+        /// Framing error.
+        source: FrameError,
+    },
+}
+
+/// Errors of [`RtdeClient::connect`].
+#[derive(Debug, Error)]
+#[non_exhaustive]
+pub enum RtdeConnectError {
+    /// The address did not resolve.
+    #[error("cannot resolve RTDE address: {0}")]
+    Resolve(io::Error),
+    /// TCP connect or the version request failed.
+    #[error(transparent)]
+    Link(#[from] RtdeLinkError),
+    /// The controller refused protocol version 2.
+    #[error("controller at {addr} refused RTDE protocol version {version}")]
+    VersionRefused {
+        /// Controller address.
+        addr: SocketAddr,
+        /// Version asked for.
+        version: u16,
+    },
+    /// The reply to `V` was malformed.
+    #[error("malformed reply to the protocol version request: {len} bytes")]
+    BadVersionReply {
+        /// Payload length.
+        len: usize,
+    },
+}
+
+/// Errors of a simple request (`v`, `S`, `P`).
+#[derive(Debug, Error)]
+#[non_exhaustive]
+pub enum RtdeRequestError {
+    /// Link failure.
+    #[error(transparent)]
+    Link(#[from] RtdeLinkError),
+    /// The controller answered 0 (not accepted).
+    #[error("controller refused RTDE request {request:?}")]
+    Refused {
+        /// The request.
+        request: PackageType,
+    },
+    /// The reply payload had the wrong length.
+    #[error("malformed reply to {request:?}: {len} bytes")]
+    BadReply {
+        /// The request.
+        request: PackageType,
+        /// Payload length.
+        len: usize,
+    },
+    /// Request not allowed in the current state (e.g. start without an output recipe).
+    #[error("RTDE request {request:?} not allowed: {reason}")]
+    NotAllowed {
+        /// The request.
+        request: PackageType,
+        /// Why.
+        reason: &'static str,
+    },
+}
+
+/// Errors of recipe setup (`O`, `I`).
+#[derive(Debug, Error)]
+#[non_exhaustive]
+pub enum RtdeSetupError {
+    /// Link failure.
+    #[error(transparent)]
+    Link(#[from] RtdeLinkError),
+    /// Empty name list, or a list longer than 2048 bytes.
+    #[error("RTDE variable list invalid: {reason}")]
+    BadList {
+        /// Why.
+        reason: &'static str,
+    },
+    /// The controller does not know these names.
+    #[error("controller does not know RTDE variables {names:?}")]
+    NotFound {
+        /// The unknown names.
+        names: Vec<String>,
+    },
+    /// Another client or a fieldbus controls these inputs.
+    #[error("RTDE inputs {names:?} are in use by another client or a fieldbus")]
+    InUse {
+        /// The names in use.
+        names: Vec<String>,
+    },
+    /// The reply cannot be parsed or does not match the request.
+    #[error("malformed RTDE setup reply: {reason}")]
+    BadReply {
+        /// Why.
+        reason: String,
+    },
+    /// Setup is only allowed while paused.
+    #[error("RTDE recipes can only be set up while the stream is paused")]
+    WhileStarted,
+}
+
+/// Errors of [`RtdeClient::receive_latest`].
+#[derive(Debug, Error)]
+#[non_exhaustive]
+pub enum RtdeReceiveError {
+    /// Link failure, including no data within the timeout.
+    #[error(transparent)]
+    Link(#[from] RtdeLinkError),
+    /// No output recipe is set up, or the stream is not started.
+    #[error("RTDE receive without a started output recipe")]
+    NotStarted,
+    /// A data package does not match the output recipe.
+    #[error("RTDE data package does not match output recipe {recipe_id}: {source}")]
+    BadPackage {
+        /// The output recipe id.
+        recipe_id: u8,
+        /// Decode failure.
+        source: ValueDecodeError,
+    },
+}
+
+/// Errors of [`RtdeClient::send_inputs`].
+#[derive(Debug, Error)]
+#[non_exhaustive]
+pub enum RtdeSendError {
+    /// Link failure.
+    #[error(transparent)]
+    Link(#[from] RtdeLinkError),
+    /// The values do not match the recipe.
+    #[error("values do not match input recipe {recipe_id}: {source}")]
+    BadValues {
+        /// The input recipe id.
+        recipe_id: u8,
+        /// Mismatch.
+        source: ValueDecodeError,
+    },
+    /// The recipe does not belong to this connection.
+    #[error("input recipe {recipe_id} was not set up on this connection")]
+    UnknownRecipe {
+        /// The recipe id.
+        recipe_id: u8,
+    },
+}
+
+/// The output recipe: names in request order and the types the controller returned.
+#[derive(Debug, Clone, PartialEq)]
+pub struct OutputRecipe {
+    /// Recipe id from the `O` reply.
+    pub id: u8,
+    /// Output frequency asked for.
+    pub frequency_hz: f64,
+    /// Variable names, in order.
+    pub names: Vec<String>,
+    /// Types as returned by the controller (the decoding uses these, not a local table).
+    pub types: Vec<RtdeType>,
+}
+
+impl OutputRecipe {
+    /// Position of a variable in the recipe.
+    pub fn index_of(&self, name: &str) -> Option<usize> {
+        self.names.iter().position(|n| n == name)
+    }
+
+    /// Bytes of one data package's fields (without header and recipe id).
+    pub fn data_len(&self) -> usize {
+        self.types.iter().map(|t| t.wire_len()).sum()
+    }
+}
+
+/// An input recipe set up on this connection.
+#[derive(Debug, Clone, PartialEq)]
+pub struct InputRecipe {
+    /// Recipe id from the `I` reply.
+    pub id: u8,
+    /// Variable names, in order.
+    pub names: Vec<String>,
+    /// Types as returned by the controller.
+    pub types: Vec<RtdeType>,
+}
+
+/// The newest data package, decoded by the output recipe's types.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DataPackage {
+    /// Values in recipe order.
+    pub values: Vec<RtdeValue>,
+    /// Packages received since the last call and dropped because a newer one arrived.
+    pub skipped: u32,
+    /// When the package was taken off the socket (local monotonic clock).
+    pub received_at: Instant,
+    /// Count of data packages received on this connection, this one included.
+    pub sequence: u64,
+}
+
+impl DataPackage {
+    /// An empty package shaped for `recipe` (allocate once, reuse every cycle).
+    pub fn for_recipe(recipe: &OutputRecipe) -> Self {
+        Self {
+            values: recipe.types.iter().map(|&t| RtdeValue::zero(t)).collect(),
+            skipped: 0,
+            received_at: Instant::now(),
+            sequence: 0,
+        }
+    }
+}
+
+/// Connection state (mirrors the controller's per-connection state machine).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum RtdeState {
+    /// Connected, protocol negotiated, not streaming.
+    Paused,
+    /// Output stream started.
+    Started,
+}
+
+/// An RTDE (port 30004) client speaking protocol version 2.
+#[derive(Debug)]
+pub struct RtdeClient {
+    stream: TcpStream,
+    addr: SocketAddr,
+    timeouts: RtdeTimeouts,
+    rx: Box<[u8]>,
+    rx_start: usize,
+    rx_end: usize,
+    tx: Vec<u8>,
+    state: RtdeState,
+    output: Option<OutputRecipe>,
+    inputs: Vec<InputRecipe>,
+    data_packages: u64,
+    text_messages: u64,
+}
+
+enum Wait {
+    Until(Instant),
+}
+
+impl RtdeClient {
+    /// Connects to `addr`, negotiates protocol version 2 and returns a paused client.
+    pub fn connect(
+        addr: impl ToSocketAddrs,
+        timeouts: RtdeTimeouts,
+    ) -> Result<Self, RtdeConnectError> {
+        let addr = addr
+            .to_socket_addrs()
+            .map_err(RtdeConnectError::Resolve)?
+            .next()
+            .ok_or_else(|| {
+                RtdeConnectError::Resolve(io::Error::new(io::ErrorKind::NotFound, "no address"))
+            })?;
+        let io_err = |source| RtdeLinkError::Io { addr, source };
+        let stream = TcpStream::connect_timeout(&addr, timeouts.connect).map_err(io_err)?;
+        // Small packages at 500 Hz: Nagle would batch them and add latency.
+        stream.set_nodelay(true).map_err(io_err)?;
+        stream
+            .set_write_timeout(Some(timeouts.write))
+            .map_err(io_err)?;
+        let mut client = Self {
+            stream,
+            addr,
+            timeouts,
+            rx: vec![0u8; RX_BUF_LEN].into_boxed_slice(),
+            rx_start: 0,
+            rx_end: 0,
+            tx: Vec::with_capacity(4096),
+            state: RtdeState::Paused,
+            output: None,
+            inputs: Vec::new(),
+            data_packages: 0,
+            text_messages: 0,
+        };
+        let reply = client.request(
+            PackageType::RequestProtocolVersion,
+            &wire::PROTOCOL_VERSION.to_be_bytes(),
+            "protocol version reply",
+        )?;
+        match reply.as_slice() {
+            [1] => Ok(client),
+            [0] => Err(RtdeConnectError::VersionRefused {
+                addr,
+                version: wire::PROTOCOL_VERSION,
+            }),
+            other => Err(RtdeConnectError::BadVersionReply { len: other.len() }),
+        }
+    }
+
+    /// The controller's address.
+    pub fn peer(&self) -> SocketAddr {
+        self.addr
+    }
+
+    /// Current stream state.
+    pub fn state(&self) -> RtdeState {
+        self.state
+    }
+
+    /// The output recipe, once set up.
+    pub fn output_recipe(&self) -> Option<&OutputRecipe> {
+        self.output.as_ref()
+    }
+
+    /// Number of text messages received (each is also logged).
+    pub fn text_messages(&self) -> u64 {
+        self.text_messages
+    }
+
+    /// Asks the controller for its version (`v`).
+    pub fn controller_version(&mut self) -> Result<ControllerVersion, RtdeRequestError> {
+        let payload = self.request(PackageType::GetUrcontrolVersion, &[], "controller version")?;
+        ControllerVersion::decode(&payload).ok_or(RtdeRequestError::BadReply {
+            request: PackageType::GetUrcontrolVersion,
+            len: payload.len(),
+        })
+    }
+
+    /// Sets up the output recipe (`O`) with the frequency in Hz (up to 500 on e-Series).
+    pub fn setup_outputs(
+        &mut self,
+        names: &[&str],
+        frequency_hz: f64,
+    ) -> Result<&OutputRecipe, RtdeSetupError> {
+        if self.state == RtdeState::Started {
+            return Err(RtdeSetupError::WhileStarted);
+        }
+        let list = Self::name_list(names)?;
+        let mut payload = frequency_hz.to_be_bytes().to_vec();
+        payload.extend_from_slice(list.as_bytes());
+        let reply = self.request(PackageType::SetupOutputs, &payload, "output setup reply")?;
+        let (id, types) = Self::parse_setup_reply(names, &reply, false)?;
+        self.output = Some(OutputRecipe {
+            id,
+            frequency_hz,
+            names: names.iter().map(|s| s.to_string()).collect(),
+            types,
+        });
+        // Just set above.
+        self.output
+            .as_ref()
+            .ok_or_else(|| RtdeSetupError::BadReply {
+                reason: "output recipe lost".into(),
+            })
+    }
+
+    /// Sets up an input recipe (`I`); its id is what later [`Self::send_inputs`] calls use.
+    pub fn setup_inputs(&mut self, names: &[&str]) -> Result<InputRecipe, RtdeSetupError> {
+        if self.state == RtdeState::Started {
+            return Err(RtdeSetupError::WhileStarted);
+        }
+        let list = Self::name_list(names)?;
+        let reply = self.request(
+            PackageType::SetupInputs,
+            list.as_bytes(),
+            "input setup reply",
+        )?;
+        let (id, types) = Self::parse_setup_reply(names, &reply, true)?;
+        let recipe = InputRecipe {
+            id,
+            names: names.iter().map(|s| s.to_string()).collect(),
+            types,
+        };
+        self.inputs.push(recipe.clone());
+        Ok(recipe)
+    }
+
+    fn name_list(names: &[&str]) -> Result<String, RtdeSetupError> {
+        if names.is_empty() || names.iter().any(|n| n.is_empty() || n.contains(',')) {
+            return Err(RtdeSetupError::BadList {
+                reason: "names must be non-empty and contain no comma",
+            });
+        }
+        let list = names.join(",");
+        if list.len() > wire::MAX_VARIABLE_LIST_LEN {
+            return Err(RtdeSetupError::BadList {
+                reason: "list longer than 2048 bytes",
+            });
+        }
+        Ok(list)
+    }
+
+    fn parse_setup_reply(
+        names: &[&str],
+        reply: &[u8],
+        input: bool,
+    ) -> Result<(u8, Vec<RtdeType>), RtdeSetupError> {
+        let (&id, rest) = reply
+            .split_first()
+            .ok_or_else(|| RtdeSetupError::BadReply {
+                reason: "empty reply".into(),
+            })?;
+        let text = std::str::from_utf8(rest).map_err(|_| RtdeSetupError::BadReply {
+            reason: "type list is not ASCII".into(),
+        })?;
+        let words: Vec<&str> = wire::split_names(text).collect();
+        if words.len() != names.len() {
+            return Err(RtdeSetupError::BadReply {
+                reason: format!("{} types for {} names: {text:?}", words.len(), names.len()),
+            });
+        }
+        let mut types = Vec::with_capacity(words.len());
+        let (mut not_found, mut in_use) = (Vec::new(), Vec::new());
+        for (name, word) in names.iter().zip(words) {
+            match SetupField::from_name(word) {
+                Some(SetupField::Type(t)) => types.push(t),
+                Some(SetupField::NotFound) => not_found.push(name.to_string()),
+                Some(SetupField::InUse) => in_use.push(name.to_string()),
+                None => {
+                    return Err(RtdeSetupError::BadReply {
+                        reason: format!("unknown type {word:?} for {name:?}"),
+                    });
+                }
+            }
+        }
+        if !not_found.is_empty() {
+            return Err(RtdeSetupError::NotFound { names: not_found });
+        }
+        if !in_use.is_empty() {
+            return Err(RtdeSetupError::InUse { names: in_use });
+        }
+        // Recipe id 0 marks a refused recipe (G-RTDE); outputs keep whatever id they get.
+        if input && id == 0 {
+            return Err(RtdeSetupError::BadReply {
+                reason: "input recipe id 0".into(),
+            });
+        }
+        Ok((id, types))
+    }
+
+    /// Starts the output stream (`S`).
+    pub fn start(&mut self) -> Result<(), RtdeRequestError> {
+        if self.output.is_none() {
+            return Err(RtdeRequestError::NotAllowed {
+                request: PackageType::Start,
+                reason: "no output recipe set up",
+            });
+        }
+        self.accepted(PackageType::Start, "start reply")?;
+        self.state = RtdeState::Started;
+        Ok(())
+    }
+
+    /// Pauses the output stream (`P`); data packages still in flight are discarded.
+    pub fn pause(&mut self) -> Result<(), RtdeRequestError> {
+        self.accepted(PackageType::Pause, "pause reply")?;
+        self.state = RtdeState::Paused;
+        Ok(())
+    }
+
+    fn accepted(&mut self, ty: PackageType, what: &'static str) -> Result<(), RtdeRequestError> {
+        let payload = self.request(ty, &[], what)?;
+        match payload.as_slice() {
+            [0] => Err(RtdeRequestError::Refused { request: ty }),
+            [_] => Ok(()),
+            other => Err(RtdeRequestError::BadReply {
+                request: ty,
+                len: other.len(),
+            }),
+        }
+    }
+
+    /// Sends one input data package (`U`) on `recipe`.
+    pub fn send_inputs(
+        &mut self,
+        recipe: &InputRecipe,
+        values: &[RtdeValue],
+    ) -> Result<(), RtdeSendError> {
+        if !self
+            .inputs
+            .iter()
+            .any(|r| r.id == recipe.id && r.types == recipe.types)
+        {
+            return Err(RtdeSendError::UnknownRecipe {
+                recipe_id: recipe.id,
+            });
+        }
+        self.tx.clear();
+        let start = 0;
+        // Size patched below, once the payload length is known.
+        self.tx
+            .extend_from_slice(&[0, 0, PackageType::DataPackage as u8, recipe.id]);
+        wire::encode_fields(&recipe.types, values, &mut self.tx).map_err(|source| {
+            RtdeSendError::BadValues {
+                recipe_id: recipe.id,
+                source,
+            }
+        })?;
+        wire::patch_size(&mut self.tx, start).map_err(|source| RtdeLinkError::Frame {
+            addr: self.addr,
+            source,
+        })?;
+        let addr = self.addr;
+        self.stream
+            .write_all(&self.tx)
+            .map_err(|source| RtdeLinkError::Io { addr, source })?;
+        Ok(())
+    }
+
+    /// Waits up to `timeout` for data and stores the **newest** data package in `out`.
+    ///
+    /// Every package already buffered in the socket is read; older data packages are counted
+    /// in `out.skipped` and dropped, text messages are logged. No data within `timeout` is a
+    /// [`RtdeLinkError::Timeout`]: for a 500 Hz stream that means the controller or the link
+    /// is gone, and the caller must stop the arm.
+    pub fn receive_latest(
+        &mut self,
+        out: &mut DataPackage,
+        timeout: Duration,
+    ) -> Result<(), RtdeReceiveError> {
+        if self.state != RtdeState::Started {
+            return Err(RtdeReceiveError::NotStarted);
+        }
+        let deadline = Instant::now() + timeout;
+        let mut got = 0u32;
+        loop {
+            got += self.drain_buffered(out)?;
+            if got > 0 {
+                // Take whatever else the kernel already holds, without waiting.
+                if self.fill_nonblocking()? {
+                    continue;
+                }
+                out.skipped = got - 1;
+                return Ok(());
+            }
+            self.fill(Wait::Until(deadline), "data package")?;
+        }
+    }
+
+    /// Decodes every complete package in the buffer; returns the number of data packages.
+    fn drain_buffered(&mut self, out: &mut DataPackage) -> Result<u32, RtdeReceiveError> {
+        let mut count = 0;
+        loop {
+            let buf = &self.rx[self.rx_start..self.rx_end];
+            let Some((pkg, used)) =
+                wire::split_package(buf).map_err(|source| RtdeLinkError::Frame {
+                    addr: self.addr,
+                    source,
+                })?
+            else {
+                return Ok(count);
+            };
+            match PackageType::from_byte(pkg.type_byte) {
+                Some(PackageType::DataPackage) => {
+                    let recipe = self.output.as_ref().ok_or(RtdeReceiveError::NotStarted)?;
+                    let (&id, fields) =
+                        pkg.payload
+                            .split_first()
+                            .ok_or(RtdeReceiveError::BadPackage {
+                                recipe_id: recipe.id,
+                                source: ValueDecodeError::Truncated {
+                                    index: 0,
+                                    ty: RtdeType::Uint8,
+                                    needed: 1,
+                                    available: 0,
+                                },
+                            })?;
+                    if id != recipe.id {
+                        log::warn!(
+                            "RTDE data package for recipe {id}, expected {}; decoding anyway",
+                            recipe.id
+                        );
+                    }
+                    wire::decode_fields(&recipe.types, fields, &mut out.values).map_err(
+                        |source| RtdeReceiveError::BadPackage {
+                            recipe_id: recipe.id,
+                            source,
+                        },
+                    )?;
+                    self.data_packages += 1;
+                    out.sequence = self.data_packages;
+                    out.received_at = Instant::now();
+                    count += 1;
+                }
+                Some(PackageType::TextMessage) => {
+                    Self::log_text(pkg.payload);
+                    self.text_messages += 1;
+                }
+                _ => log::warn!(
+                    "RTDE: unexpected package type {:?} while streaming; ignored",
+                    pkg.type_byte as char
+                ),
+            }
+            self.rx_start += used;
+        }
+    }
+
+    fn log_text(payload: &[u8]) {
+        match TextMessage::decode(payload) {
+            Ok(m) => {
+                let level = match m.level {
+                    TextLevel::Exception | TextLevel::Error => log::Level::Error,
+                    TextLevel::Warning => log::Level::Warn,
+                    TextLevel::Info => log::Level::Info,
+                };
+                log::log!(level, "controller [{}]: {}", m.source, m.message);
+            }
+            Err(e) => log::warn!("RTDE: undecodable text message: {e}"),
+        }
+    }
+
+    /// Sends a setup request and returns the payload of the reply of the same type.
+    /// Text messages in between are logged; stale data packages are dropped.
+    fn request(
+        &mut self,
+        ty: PackageType,
+        payload: &[u8],
+        what: &'static str,
+    ) -> Result<Vec<u8>, RtdeLinkError> {
+        self.tx.clear();
+        wire::push_package(&mut self.tx, ty, payload).map_err(|source| RtdeLinkError::Frame {
+            addr: self.addr,
+            source,
+        })?;
+        let addr = self.addr;
+        self.stream
+            .write_all(&self.tx)
+            .map_err(|source| RtdeLinkError::Io { addr, source })?;
+        let deadline = Instant::now() + self.timeouts.reply;
+        loop {
+            while let Some((pkg, used)) = wire::split_package(&self.rx[self.rx_start..self.rx_end])
+                .map_err(|source| RtdeLinkError::Frame { addr, source })?
+            {
+                let reply = (pkg.type_byte == ty as u8).then(|| pkg.payload.to_vec());
+                if pkg.type_byte == PackageType::TextMessage as u8 {
+                    Self::log_text(pkg.payload);
+                    self.text_messages += 1;
+                }
+                self.rx_start += used;
+                if let Some(r) = reply {
+                    return Ok(r);
+                }
+            }
+            self.fill(Wait::Until(deadline), what)?;
+        }
+    }
+
+    /// Moves unread bytes to the buffer start so a full package always fits.
+    fn compact(&mut self) {
+        if self.rx_start > 0 {
+            self.rx.copy_within(self.rx_start..self.rx_end, 0);
+            self.rx_end -= self.rx_start;
+            self.rx_start = 0;
+        }
+    }
+
+    /// Blocking read until at least one byte arrived or the deadline passed.
+    fn fill(&mut self, wait: Wait, what: &'static str) -> Result<(), RtdeLinkError> {
+        self.compact();
+        let Wait::Until(deadline) = wait;
+        let addr = self.addr;
+        loop {
+            let now = Instant::now();
+            let left = deadline.saturating_duration_since(now);
+            if left.is_zero() {
+                return Err(RtdeLinkError::Timeout {
+                    addr,
+                    what,
+                    waited: self.timeouts.reply.max(left),
+                });
+            }
+            self.stream
+                .set_read_timeout(Some(left))
+                .map_err(|source| RtdeLinkError::Io { addr, source })?;
+            match self.stream.read(&mut self.rx[self.rx_end..]) {
+                Ok(0) => return Err(RtdeLinkError::Closed { addr }),
+                Ok(n) => {
+                    self.rx_end += n;
+                    return Ok(());
+                }
+                Err(e)
+                    if matches!(
+                        e.kind(),
+                        io::ErrorKind::WouldBlock | io::ErrorKind::TimedOut
+                    ) =>
+                {
+                    return Err(RtdeLinkError::Timeout {
+                        addr,
+                        what,
+                        waited: left,
+                    });
+                }
+                Err(e) if e.kind() == io::ErrorKind::Interrupted => continue,
+                Err(source) => return Err(RtdeLinkError::Io { addr, source }),
+            }
+        }
+    }
+
+    /// Reads whatever the kernel holds without blocking; true when bytes arrived.
+    fn fill_nonblocking(&mut self) -> Result<bool, RtdeLinkError> {
+        self.compact();
+        let addr = self.addr;
+        let io_err = |source| RtdeLinkError::Io { addr, source };
+        self.stream.set_nonblocking(true).map_err(io_err)?;
+        let result = loop {
+            match self.stream.read(&mut self.rx[self.rx_end..]) {
+                Ok(0) => break Err(RtdeLinkError::Closed { addr }),
+                Ok(n) => {
+                    self.rx_end += n;
+                    break Ok(true);
+                }
+                Err(e) if e.kind() == io::ErrorKind::WouldBlock => break Ok(false),
+                Err(e) if e.kind() == io::ErrorKind::Interrupted => continue,
+                Err(source) => break Err(RtdeLinkError::Io { addr, source }),
+            }
+        };
+        self.stream.set_nonblocking(false).map_err(io_err)?;
+        result
+    }
+
+    /// Closes the connection (pausing first if started, as URPY does).
+    pub fn disconnect(mut self) {
+        if self.state == RtdeState::Started {
+            let _ = self.pause();
+        }
+        let _ = self.stream.shutdown(std::net::Shutdown::Both);
+    }
+}

@@ -1,0 +1,10 @@
+//! RTDE (Real-Time Data Exchange, port 30004), protocol version 2.
+
+mod client;
+pub mod wire;
+
+pub use client::{
+    DataPackage, InputRecipe, OutputRecipe, RTDE_PORT, RtdeClient, RtdeConnectError, RtdeLinkError,
+    RtdeReceiveError, RtdeRequestError, RtdeSendError, RtdeSetupError, RtdeState, RtdeTimeouts,
+};
+pub use wire::{ControllerVersion, PackageType, RtdeType, RtdeValue, TextLevel, TextMessage};

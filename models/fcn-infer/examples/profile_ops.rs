@@ -1,0 +1,47 @@
+//! Per-operator time of the optimised tract plan, to see where a model spends its microseconds.
+//!
+//! `cargo run --release -p fcn-infer --example profile_ops -- models/psi-fcn.onnx 1 2000`
+//! (model, batch size, iterations). Used to choose the architecture (docs/fcn.md).
+
+use std::collections::BTreeMap;
+use std::time::Instant;
+
+use tract_onnx::prelude::*;
+
+fn main() -> TractResult<()> {
+    let mut args = std::env::args().skip(1);
+    let path = args.next().unwrap_or_else(|| "models/psi-fcn.onnx".into());
+    let batch: usize = args.next().map(|s| s.parse()).transpose()?.unwrap_or(1);
+    let iters: usize = args.next().map(|s| s.parse()).transpose()?.unwrap_or(2000);
+    let model = tract_onnx::onnx()
+        .model_for_path(&path)?
+        .with_input_fact(0, u8::fact([batch, 1, 32, 64]).into())?
+        .into_optimized()?;
+    let plan = model.into_runnable()?;
+    let mut state = plan.spawn()?;
+    let input: TValue = Tensor::zero::<u8>(&[batch, 1, 32, 64])?.into();
+    let mut per_node: BTreeMap<usize, (String, f64)> = BTreeMap::new();
+    for i in 0..iters {
+        let record = i >= iters / 10;
+        state.run_plan_with_eval(tvec!(input.clone()), |ctx, op_state, node, inputs| {
+            let t = Instant::now();
+            let r = tract_onnx::tract_core::plan::eval(ctx, op_state, node, inputs);
+            if record {
+                let e = per_node
+                    .entry(node.id)
+                    .or_insert_with(|| (format!("{} {}", node.name, node.op().name()), 0.0));
+                e.1 += t.elapsed().as_secs_f64() * 1e6;
+            }
+            r
+        })?;
+    }
+    let n = (iters - iters / 10) as f64;
+    let total: f64 = per_node.values().map(|v| v.1).sum::<f64>() / n;
+    let mut rows: Vec<_> = per_node.into_values().collect();
+    rows.sort_by(|a, b| b.1.total_cmp(&a.1));
+    println!("batch {batch}: {total:.1} us per run in operators");
+    for (name, us) in rows {
+        println!("{:8.2} us  {name}", us / n);
+    }
+    Ok(())
+}

@@ -1,0 +1,174 @@
+//! Loading errors for missing, corrupt and wrongly shaped models; exact batching behaviour on a
+//! fixture whose heatmap is crop / 255; the committed model's basic contract.
+
+use std::path::{Path, PathBuf};
+
+use fcn_infer::{CROP_CELLS, Crop, FcnModel, HeatmapCells, InferError, MAX_BATCH, ModelLoadError};
+
+fn fixture(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/fixtures")
+        .join(name)
+}
+
+fn committed_model() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../psi-fcn.onnx")
+}
+
+fn patterned_crop(seed: u8) -> Crop {
+    let mut crop = [0u8; CROP_CELLS];
+    for (i, v) in crop.iter_mut().enumerate() {
+        *v = ((i * 7 + seed as usize * 31) % 256) as u8;
+    }
+    crop
+}
+
+#[test]
+fn missing_file_is_not_found() {
+    let err = FcnModel::load(&fixture("no_such_model.onnx")).unwrap_err();
+    assert!(matches!(err, ModelLoadError::NotFound { .. }), "{err}");
+    assert!(err.to_string().contains("no_such_model.onnx"));
+}
+
+#[test]
+fn a_directory_is_an_io_error() {
+    let err = FcnModel::load(&fixture("")).unwrap_err();
+    assert!(matches!(err, ModelLoadError::Io { .. }), "{err}");
+}
+
+#[test]
+fn corrupt_file_is_reported() {
+    let err = FcnModel::load(&fixture("corrupt.onnx")).unwrap_err();
+    assert!(matches!(err, ModelLoadError::Corrupt { .. }), "{err}");
+    assert!(err.to_string().contains("corrupt.onnx"));
+}
+
+#[test]
+fn random_bytes_are_reported() {
+    let bytes: Vec<u8> = (0..4096u32)
+        .map(|i| (i.wrapping_mul(2654435761) >> 13) as u8)
+        .collect();
+    let err = FcnModel::from_bytes(&bytes, Path::new("noise.onnx")).unwrap_err();
+    assert!(
+        matches!(
+            err,
+            ModelLoadError::Corrupt { .. } | ModelLoadError::WrongInterface { .. }
+        ),
+        "{err}"
+    );
+}
+
+#[test]
+fn wrong_input_shape_is_reported() {
+    let err = FcnModel::load(&fixture("wrong_shape.onnx")).unwrap_err();
+    assert!(
+        matches!(err, ModelLoadError::WrongInterface { .. }),
+        "{err}"
+    );
+    assert!(err.to_string().contains("axis 2"), "{err}");
+}
+
+#[test]
+fn wrong_output_shape_is_reported() {
+    let err = FcnModel::load(&fixture("wrong_output.onnx")).unwrap_err();
+    assert!(
+        matches!(err, ModelLoadError::WrongInterface { .. }),
+        "{err}"
+    );
+}
+
+#[test]
+fn float_input_is_reported() {
+    let err = FcnModel::load(&fixture("float_input.onnx")).unwrap_err();
+    assert!(
+        matches!(err, ModelLoadError::WrongInterface { .. }),
+        "{err}"
+    );
+    assert!(err.to_string().contains("F32"), "{err}");
+}
+
+#[test]
+fn single_and_batched_predictions_are_exact_and_in_order() {
+    let mut model = FcnModel::load(&fixture("scale.onnx")).expect("fixture loads");
+    let crops: Vec<Crop> = (0..MAX_BATCH as u8).map(patterned_crop).collect();
+    let mut single = [0f32; CROP_CELLS];
+    for (i, crop) in crops.iter().enumerate() {
+        model.predict(crop, &mut single).expect("predict");
+        for (cell, (&h, &c)) in single.iter().zip(crop.iter()).enumerate() {
+            assert!((h - c as f32 / 255.0).abs() < 1e-6, "crop {i} cell {cell}");
+        }
+    }
+    for n in 1..=MAX_BATCH {
+        let mut out = vec![[f32::NAN; CROP_CELLS]; n];
+        model.predict_batch(&crops[..n], &mut out).expect("batch");
+        for (i, heat) in out.iter().enumerate() {
+            for (cell, (&h, &c)) in heat.iter().zip(crops[i].iter()).enumerate() {
+                assert!(
+                    (h - c as f32 / 255.0).abs() < 1e-6,
+                    "batch {n} crop {i} cell {cell}"
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn repeated_calls_reuse_the_plan_and_give_the_same_answer() {
+    let mut model = FcnModel::load(&fixture("scale.onnx")).expect("fixture loads");
+    let crop = patterned_crop(3);
+    let mut a = [0f32; CROP_CELLS];
+    let mut b = [1f32; CROP_CELLS];
+    model.predict(&crop, &mut a).expect("first");
+    for _ in 0..10 {
+        model.predict(&patterned_crop(9), &mut b).expect("other");
+    }
+    model.predict(&crop, &mut b).expect("again");
+    assert_eq!(a, b);
+}
+
+#[test]
+fn bad_batch_sizes_are_errors() {
+    let mut model = FcnModel::load(&fixture("scale.onnx")).expect("fixture loads");
+    let crops = vec![[0u8; CROP_CELLS]; MAX_BATCH + 1];
+    let mut out = vec![[0f32; CROP_CELLS]; MAX_BATCH + 1];
+    assert_eq!(
+        model.predict_batch(&crops, &mut out),
+        Err(InferError::BatchSize(MAX_BATCH + 1))
+    );
+    assert_eq!(
+        model.predict_batch(&[], &mut []),
+        Err(InferError::BatchSize(0))
+    );
+    assert_eq!(
+        model.predict_batch(&crops[..2], &mut out[..3]),
+        Err(InferError::OutputCount {
+            crops: 2,
+            outputs: 3
+        })
+    );
+}
+
+#[test]
+fn committed_model_gives_probabilities_for_any_crop() {
+    let mut model = FcnModel::load(&committed_model()).expect("models/psi-fcn.onnx loads");
+    let crops = [
+        [0u8; CROP_CELLS],
+        [255u8; CROP_CELLS],
+        patterned_crop(1),
+        patterned_crop(2),
+    ];
+    let mut out: Vec<HeatmapCells> = vec![[f32::NAN; CROP_CELLS]; crops.len()];
+    model.predict_batch(&crops, &mut out).expect("predict");
+    for heat in &out {
+        assert!(heat.iter().all(|v| (0.0..=1.0).contains(v)));
+    }
+    // Batched and single calls agree (the same optimised graph at another batch size).
+    let mut single = [0f32; CROP_CELLS];
+    model.predict(&crops[2], &mut single).expect("single");
+    let max_diff = single
+        .iter()
+        .zip(out[2].iter())
+        .map(|(a, b)| (a - b).abs())
+        .fold(0.0, f32::max);
+    assert!(max_diff < 1e-5, "batch vs single differ by {max_diff}");
+}

@@ -1,0 +1,156 @@
+//! Base collision against the scene, and the scene as boxes for the arm's collision checks.
+
+use ur5e_kin::{BasePose, ObstacleBox};
+use nalgebra::{Point3, Vector3};
+
+use crate::robot::RobotConfig;
+use crate::scene::{Scene, TABLE_CENTER_Y_M};
+
+/// Obstacles farther than this from the arm's base (m, in the floor plane) cannot be touched by
+/// the arm: UR5e reach 0.85 m from the shoulder axis plus a Robotiq 2F-140 and margin. Boxes
+/// beyond it are left out of [`Scene::obstacle_boxes`] so every IK check stays cheap.
+pub const ARM_RELEVANCE_RADIUS_M: f64 = 1.6;
+
+/// Thickness given to walls when they are handed to the arm as boxes (m).
+const WALL_THICKNESS_M: f64 = 0.1;
+
+/// Whether the base footprint at `base` touches a table, a chair or a wall (or leaves the room).
+/// Tables count from the floor up: the base cannot drive under a table top.
+pub fn base_collides(scene: &Scene, robot: &RobotConfig, base: BasePose) -> bool {
+    let footprint = robot.footprint.at(base.x_m, base.y_m, base.yaw_rad);
+    !scene.room.contains_rect(&footprint)
+        || footprint.overlaps(&scene.banquet_table.footprint())
+        || footprint.overlaps(&scene.loading_table.footprint())
+        || scene
+            .chairs
+            .iter()
+            .any(|c| c.footprint().overlaps(&footprint))
+}
+
+impl Scene {
+    /// Everything the arm may hit, as world-frame boxes for ur5e-kin: the robot's own base body
+    /// (footprint up to `footprint.body_height_m`), the tables (floor to top), chairs (floor to
+    /// backrest) and walls, keeping only boxes within [`ARM_RELEVANCE_RADIUS_M`] of the arm base.
+    pub fn obstacle_boxes(&self, robot: &RobotConfig, base: BasePose) -> Vec<ObstacleBox> {
+        let mut boxes = Vec::with_capacity(8);
+        self.obstacle_boxes_into(robot, base, &mut boxes);
+        boxes
+    }
+
+    /// As [`Scene::obstacle_boxes`], into a reused vector (cleared first): no allocation once
+    /// the vector has grown.
+    pub fn obstacle_boxes_into(
+        &self,
+        robot: &RobotConfig,
+        base: BasePose,
+        boxes: &mut Vec<ObstacleBox>,
+    ) {
+        boxes.clear();
+        let (sin_yaw, cos_yaw) = base.yaw_rad.sin_cos();
+        let mount = &robot.place.mount;
+        let arm_x = base.x_m + cos_yaw * mount.forward_m - sin_yaw * mount.lateral_m;
+        let arm_y = base.y_m + sin_yaw * mount.forward_m + cos_yaw * mount.lateral_m;
+        let relevant = |x0: f64, x1: f64, y0: f64, y1: f64| {
+            let dx = (x0 - arm_x).max(arm_x - x1).max(0.0);
+            let dy = (y0 - arm_y).max(arm_y - y1).max(0.0);
+            dx * dx + dy * dy <= ARM_RELEVANCE_RADIUS_M * ARM_RELEVANCE_RADIUS_M
+        };
+
+        let body = robot.footprint;
+        boxes.push(ObstacleBox {
+            center: Point3::new(base.x_m, base.y_m, 0.5 * body.body_height_m),
+            half_extents: Vector3::new(
+                0.5 * body.length_m,
+                0.5 * body.width_m,
+                0.5 * body.body_height_m,
+            ),
+            yaw_rad: base.yaw_rad,
+        });
+
+        let bt = &self.banquet_table;
+        if relevant(bt.x_min_m(), bt.x_max_m(), bt.y_min_m(), bt.y_max_m()) {
+            // Only the stretch of the long table near the arm: a 13.5 m box would be exact too,
+            // but a short one keeps the arm's bounding checks tight.
+            let x0 = bt.x_min_m().max(arm_x - ARM_RELEVANCE_RADIUS_M);
+            let x1 = bt.x_max_m().min(arm_x + ARM_RELEVANCE_RADIUS_M);
+            boxes.push(ObstacleBox {
+                center: Point3::new(0.5 * (x0 + x1), TABLE_CENTER_Y_M, 0.5 * bt.top_height_m),
+                half_extents: Vector3::new(
+                    0.5 * (x1 - x0),
+                    0.5 * bt.depth_m,
+                    0.5 * bt.top_height_m,
+                ),
+                yaw_rad: 0.0,
+            });
+        }
+        let lt = &self.loading_table;
+        let (lx0, lx1, ly0, ly1) = lt.footprint().bounds();
+        if relevant(lx0, lx1, ly0, ly1) {
+            boxes.push(ObstacleBox {
+                center: Point3::new(lt.center_x_m, lt.center_y_m, 0.5 * lt.top_height_m),
+                half_extents: Vector3::new(
+                    0.5 * lt.length_m,
+                    0.5 * lt.depth_m,
+                    0.5 * lt.top_height_m,
+                ),
+                yaw_rad: 0.0,
+            });
+        }
+        for chair in &self.chairs {
+            let (x0, x1, y0, y1) = chair.footprint().bounds();
+            if relevant(x0, x1, y0, y1) {
+                boxes.push(ObstacleBox {
+                    center: Point3::new(chair.x_m, chair.y_m, 0.5 * chair.height_m),
+                    half_extents: Vector3::new(
+                        0.5 * chair.depth_m,
+                        0.5 * chair.width_m,
+                        0.5 * chair.height_m,
+                    ),
+                    yaw_rad: chair.yaw_rad,
+                });
+            }
+        }
+        let room = &self.room;
+        let wall_height_m = 3.0;
+        let t = WALL_THICKNESS_M;
+        let walls = [
+            (
+                room.x_min_m - t,
+                room.x_min_m,
+                room.y_min_m - t,
+                room.y_max_m + t,
+            ),
+            (
+                room.x_max_m,
+                room.x_max_m + t,
+                room.y_min_m - t,
+                room.y_max_m + t,
+            ),
+            (
+                room.x_min_m - t,
+                room.x_max_m + t,
+                room.y_min_m - t,
+                room.y_min_m,
+            ),
+            (
+                room.x_min_m - t,
+                room.x_max_m + t,
+                room.y_max_m,
+                room.y_max_m + t,
+            ),
+        ];
+        for (x0, x1, y0, y1) in walls {
+            if relevant(x0, x1, y0, y1) {
+                boxes.push(ObstacleBox {
+                    center: Point3::new(0.5 * (x0 + x1), 0.5 * (y0 + y1), 0.5 * wall_height_m),
+                    half_extents: Vector3::new(
+                        0.5 * (x1 - x0),
+                        0.5 * (y1 - y0),
+                        0.5 * wall_height_m,
+                    ),
+                    yaw_rad: 0.0,
+                });
+            }
+        }
+    }
+}

@@ -1,0 +1,323 @@
+//! The robot file: base footprint, UR5e mount and placing settings, speeds and limits,
+//! navigation noise, the success reward R.
+//!
+//! Format (TOML or JSON by extension, `format_version = 1`) in `docs/world.md`; the default
+//! file is `runtime/world/data/robot.toml` and equals [`RobotConfig::default`].
+
+use std::path::{Path, PathBuf};
+
+use ur5e_kin::PlaceConfig;
+use serde::{Deserialize, Serialize};
+
+use crate::geometry::OrientedRect;
+use crate::scene::{FileEncoding, InvalidField, encoding_of, first_non_finite};
+
+/// The robot format version this crate reads and writes.
+pub const ROBOT_FORMAT_VERSION: u32 = 1;
+
+/// Everything about the robot that the world, the simulator and the planner need.
+#[derive(Serialize, Deserialize, Clone, Debug)]
+#[serde(deny_unknown_fields)]
+pub struct RobotConfig {
+    /// Must equal [`ROBOT_FORMAT_VERSION`].
+    pub format_version: u32,
+    /// The mobile base's body seen from above.
+    pub footprint: BaseFootprint,
+    /// Arm mount on the base, gripper length and placing tolerance (ur5e-kin's settings).
+    pub place: PlaceConfig,
+    /// Cruise speed of the base (m/s); travel time C = path length / speed (paper: 0.2/0.4/0.8).
+    pub speed_mps: f64,
+    /// Linear acceleration limit of the base (m/s^2).
+    pub accel_mps2: f64,
+    /// Turning-rate limit of the base (rad/s).
+    pub yaw_rate_radps: f64,
+    /// Turning-acceleration limit of the base (rad/s^2).
+    pub yaw_accel_radps2: f64,
+    /// Standard deviation of the realised base position around a navigation goal, per axis (m).
+    pub nav_noise_sigma_m: f64,
+    /// Reward R for a placed object in the utility U = R * F - C (paper eq. 3; 40).
+    pub success_bonus_r: f64,
+}
+
+/// The base's rectangular body, centred on the base frame origin (base centre on the floor,
+/// x forward).
+#[derive(Serialize, Deserialize, Clone, Copy, Debug, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct BaseFootprint {
+    /// Extent along the heading (m).
+    pub length_m: f64,
+    /// Extent across the heading (m).
+    pub width_m: f64,
+    /// Height of the body (deck and arm column) the arm must not hit (m).
+    pub body_height_m: f64,
+}
+
+impl BaseFootprint {
+    /// Segway RMP 110 with its deck and the column carrying the arm, rounded up to a box:
+    /// 0.60 m long, 0.55 m wide. The body reaches up to the arm's mounting plate.
+    pub const RMP_110: BaseFootprint = BaseFootprint {
+        length_m: 0.60,
+        width_m: 0.55,
+        body_height_m: 1.0,
+    };
+
+    /// The footprint at a base pose.
+    pub fn at(&self, x_m: f64, y_m: f64, yaw_rad: f64) -> OrientedRect {
+        OrientedRect::new(x_m, y_m, self.length_m, self.width_m, yaw_rad)
+    }
+}
+
+impl Default for RobotConfig {
+    /// The paper's robot: RMP 110 base, UR5e on ur5e-kin's default mount with a Robotiq 2F-140,
+    /// 0.4 m/s, sigma = 0.1 m, R = 40.
+    fn default() -> Self {
+        let place = PlaceConfig::default();
+        let footprint = BaseFootprint {
+            // The body reaches up to the arm's mounting plate.
+            body_height_m: place.mount.height_m,
+            ..BaseFootprint::RMP_110
+        };
+        Self {
+            format_version: ROBOT_FORMAT_VERSION,
+            footprint,
+            place,
+            speed_mps: 0.4,
+            accel_mps2: 0.5,
+            yaw_rate_radps: 1.0,
+            yaw_accel_radps2: 1.5,
+            nav_noise_sigma_m: 0.1,
+            success_bonus_r: 40.0,
+        }
+    }
+}
+
+/// Failure to read, parse, validate or write a robot file. Every variant names the file.
+#[derive(Debug, thiserror::Error)]
+pub enum RobotError {
+    /// The file could not be read.
+    #[error("robot file {path}: cannot read: {source}")]
+    Read {
+        /// The file.
+        path: PathBuf,
+        /// The I/O error.
+        source: std::io::Error,
+    },
+    /// The extension is neither `.toml` nor `.json`.
+    #[error("robot file {path}: unknown format (use a .toml or .json file)")]
+    UnknownExtension {
+        /// The file.
+        path: PathBuf,
+    },
+    /// Syntax error, unknown or missing field, wrong type (the message names field and line).
+    #[error("robot file {path}: {message}")]
+    Parse {
+        /// The file.
+        path: PathBuf,
+        /// The parser's message.
+        message: String,
+    },
+    /// The file was written for another format version.
+    #[error(
+        "robot file {path}: field `format_version`: found {found}, this build reads {supported}"
+    )]
+    UnsupportedVersion {
+        /// The file.
+        path: PathBuf,
+        /// The version in the file.
+        found: u32,
+        /// The version this build reads.
+        supported: u32,
+    },
+    /// A value out of its range (NaN, negative speed, mount outside the base...).
+    #[error("robot file {path}: field `{}`: {}", .invalid.field, .invalid.reason)]
+    Invalid {
+        /// The file.
+        path: PathBuf,
+        /// Which field and why.
+        invalid: InvalidField,
+    },
+    /// The file could not be written.
+    #[error("robot file {path}: cannot write: {message}")]
+    Write {
+        /// The file.
+        path: PathBuf,
+        /// What went wrong.
+        message: String,
+    },
+}
+
+#[derive(Deserialize)]
+struct VersionProbe {
+    format_version: u32,
+}
+
+impl RobotConfig {
+    /// Reads and validates a robot file (`.toml` or `.json`).
+    pub fn load(path: impl AsRef<Path>) -> Result<RobotConfig, RobotError> {
+        let path = path.as_ref();
+        let encoding = encoding_of(path).ok_or_else(|| RobotError::UnknownExtension {
+            path: path.to_owned(),
+        })?;
+        let text = std::fs::read_to_string(path).map_err(|source| RobotError::Read {
+            path: path.to_owned(),
+            source,
+        })?;
+        Self::parse(&text, encoding, path)
+    }
+
+    /// Parses and validates robot text in TOML; `origin` names the source in errors.
+    pub fn from_toml_str(text: &str, origin: impl AsRef<Path>) -> Result<RobotConfig, RobotError> {
+        Self::parse(text, FileEncoding::Toml, origin.as_ref())
+    }
+
+    fn parse(text: &str, encoding: FileEncoding, path: &Path) -> Result<RobotConfig, RobotError> {
+        let version = match encoding {
+            FileEncoding::Toml => toml::from_str::<VersionProbe>(text)
+                .map(|p| p.format_version)
+                .ok(),
+            FileEncoding::Json => serde_json::from_str::<VersionProbe>(text)
+                .map(|p| p.format_version)
+                .ok(),
+        };
+        if let Some(found) = version
+            && found != ROBOT_FORMAT_VERSION
+        {
+            return Err(RobotError::UnsupportedVersion {
+                path: path.to_owned(),
+                found,
+                supported: ROBOT_FORMAT_VERSION,
+            });
+        }
+        let config: RobotConfig = match encoding {
+            FileEncoding::Toml => toml::from_str(text).map_err(|e| RobotError::Parse {
+                path: path.to_owned(),
+                message: e.to_string().trim_end().to_owned(),
+            })?,
+            FileEncoding::Json => serde_json::from_str(text).map_err(|e| RobotError::Parse {
+                path: path.to_owned(),
+                message: e.to_string(),
+            })?,
+        };
+        config.validate().map_err(|invalid| RobotError::Invalid {
+            path: path.to_owned(),
+            invalid,
+        })?;
+        Ok(config)
+    }
+
+    /// The configuration as TOML text.
+    pub fn to_toml_string(&self) -> Result<String, RobotError> {
+        toml::to_string(self).map_err(|e| RobotError::Write {
+            path: PathBuf::from("<memory>"),
+            message: e.to_string(),
+        })
+    }
+
+    /// Writes the configuration (`.toml` or `.json`, by extension).
+    pub fn save(&self, path: impl AsRef<Path>) -> Result<(), RobotError> {
+        let path = path.as_ref();
+        let encoding = encoding_of(path).ok_or_else(|| RobotError::UnknownExtension {
+            path: path.to_owned(),
+        })?;
+        let text = match encoding {
+            FileEncoding::Toml => toml::to_string(self).map_err(|e| e.to_string()),
+            FileEncoding::Json => serde_json::to_string_pretty(self).map_err(|e| e.to_string()),
+        }
+        .map_err(|message| RobotError::Write {
+            path: path.to_owned(),
+            message,
+        })?;
+        std::fs::write(path, text).map_err(|e| RobotError::Write {
+            path: path.to_owned(),
+            message: e.to_string(),
+        })
+    }
+
+    /// Checks every field's range (see `docs/world.md`); names the first bad field.
+    pub fn validate(&self) -> Result<(), InvalidField> {
+        if self.format_version != ROBOT_FORMAT_VERSION {
+            return Err(InvalidField::new(
+                "format_version",
+                format!(
+                    "found {}, this build reads {ROBOT_FORMAT_VERSION}",
+                    self.format_version
+                ),
+            ));
+        }
+        if let Some(field) = first_non_finite(self) {
+            return Err(InvalidField::new(field, "not a finite number"));
+        }
+        let positive = [
+            ("footprint.length_m", self.footprint.length_m),
+            ("footprint.width_m", self.footprint.width_m),
+            ("footprint.body_height_m", self.footprint.body_height_m),
+            ("place.mount.height_m", self.place.mount.height_m),
+            ("speed_mps", self.speed_mps),
+            ("accel_mps2", self.accel_mps2),
+            ("yaw_rate_radps", self.yaw_rate_radps),
+            ("yaw_accel_radps2", self.yaw_accel_radps2),
+        ];
+        for (field, value) in positive {
+            if value <= 0.0 {
+                return Err(InvalidField::new(
+                    field,
+                    format!("must be positive, found {value}"),
+                ));
+            }
+        }
+        let non_negative = [
+            ("nav_noise_sigma_m", self.nav_noise_sigma_m),
+            ("success_bonus_r", self.success_bonus_r),
+            ("place.tcp_offset_m", self.place.tcp_offset_m),
+            ("place.down_tolerance_rad", self.place.down_tolerance_rad),
+        ];
+        for (field, value) in non_negative {
+            if value < 0.0 {
+                return Err(InvalidField::new(
+                    field,
+                    format!("must not be negative, found {value}"),
+                ));
+            }
+        }
+        if self.footprint.length_m > 3.0 || self.footprint.width_m > 3.0 {
+            return Err(InvalidField::new(
+                "footprint",
+                "a base larger than 3 m is not a mobile manipulator",
+            ));
+        }
+        let mount = &self.place.mount;
+        if mount.forward_m.abs() > 0.5 * self.footprint.length_m
+            || mount.lateral_m.abs() > 0.5 * self.footprint.width_m
+        {
+            return Err(InvalidField::new(
+                "place.mount",
+                format!(
+                    "arm base ({:.3}, {:.3}) m lies outside the {:.2} x {:.2} m footprint",
+                    mount.forward_m,
+                    mount.lateral_m,
+                    self.footprint.length_m,
+                    self.footprint.width_m
+                ),
+            ));
+        }
+        if mount.height_m > 3.0 {
+            return Err(InvalidField::new(
+                "place.mount.height_m",
+                format!("{} m is above any ceiling", mount.height_m),
+            ));
+        }
+        if self.place.down_tolerance_rad > std::f64::consts::PI {
+            return Err(InvalidField::new(
+                "place.down_tolerance_rad",
+                "must be at most pi",
+            ));
+        }
+        Ok(())
+    }
+
+    /// Travel time (s) along a path of `length_m` at the cruise speed: C of paper eq. 3 for one
+    /// navigation action. Acceleration is ignored, as in the paper's costs.
+    pub fn travel_time_s(&self, length_m: f64) -> f64 {
+        length_m / self.speed_mps
+    }
+}

@@ -1,0 +1,172 @@
+//! Occupancy grid and any-angle planning.
+
+use world::nav::{NAV_CELL_M, OccupancyGrid};
+use world::scene::{Chair, Scene};
+use world::{BasePose, RobotConfig, base_collides};
+
+#[test]
+fn open_floor_path_is_the_straight_line() {
+    let scene = Scene::empty_paper_room();
+    let grid = OccupancyGrid::from_scene(&scene, &RobotConfig::default());
+    let path = grid.plan((0.0, 2.0), (3.0, 4.0)).expect("open floor");
+    assert_eq!(path.points.len(), 2);
+    assert!((path.length_m - 13f64.sqrt()).abs() < 1e-9);
+    assert!((path.travel_time_s(0.4) - 13f64.sqrt() / 0.4).abs() < 1e-9);
+}
+
+#[test]
+fn path_around_the_table_to_the_far_side() {
+    let scene = Scene::empty_paper_room();
+    let robot = RobotConfig::default();
+    let grid = OccupancyGrid::from_scene(&scene, &robot);
+    let from = (0.0, 5.0);
+    let to = (0.0, 7.0);
+    let path = grid.plan(from, to).expect("around the table end");
+    // Must go round an end of the 13.5 m table: at least 2 * 6.75 m of detour along x.
+    assert!(path.length_m > 13.5, "{}", path.length_m);
+    assert!(
+        path.length_m < 16.5,
+        "any-angle path should be near-optimal: {}",
+        path.length_m
+    );
+    // Every corner is free and every segment stays on free cells (sampled finely).
+    for w in path.points.windows(2) {
+        let steps =
+            ((w[1].0 - w[0].0).hypot(w[1].1 - w[0].1) / (0.25 * NAV_CELL_M)).ceil() as usize;
+        for s in 0..=steps {
+            let t = s as f64 / steps.max(1) as f64;
+            let p = (
+                w[0].0 + t * (w[1].0 - w[0].0),
+                w[0].1 + t * (w[1].1 - w[0].1),
+            );
+            assert!(grid.is_free(p), "path crosses a blocked cell at {p:?}");
+        }
+    }
+}
+
+#[test]
+fn cells_next_to_furniture_and_walls_are_blocked() {
+    let mut scene = Scene::empty_paper_room();
+    scene.chairs.push(Chair::new(2.0, 4.0, 0.0));
+    let robot = RobotConfig::default();
+    let grid = OccupancyGrid::from_scene(&scene, &robot);
+    assert!(!grid.is_free((2.0, 4.0)), "chair");
+    assert!(!grid.is_free((0.0, 5.75)), "table edge");
+    assert!(!grid.is_free((-9.95, 0.0)), "wall");
+    assert!(!grid.is_free((30.0, 0.0)), "outside the room");
+    assert!(!grid.is_free((f64::NAN, 0.0)));
+    assert!(grid.is_free((2.0, 3.0)));
+    // A base facing the table 0.6 m off its centre line fits (front edge 0.1 m from the table).
+    assert!(grid.is_free((0.0, 5.4)));
+    assert!(!base_collides(
+        &scene,
+        &robot,
+        BasePose {
+            x_m: 0.0,
+            y_m: 5.4,
+            yaw_rad: std::f64::consts::FRAC_PI_2
+        }
+    ));
+}
+
+#[test]
+fn enclosed_goal_has_no_path() {
+    let mut scene = Scene::empty_paper_room();
+    // A pocket in the room's south-west corner (x -10 .. -9.225, y -2.1 .. -0.75) closed by a
+    // column of chairs and a bench: big enough for the base, but walled in.
+    for y in [-1.875, -1.425, -0.975] {
+        scene.chairs.push(Chair::new(-9.0, y, 0.0));
+    }
+    scene.chairs.push(Chair {
+        x_m: -9.6,
+        y_m: -0.525,
+        yaw_rad: 0.0,
+        depth_m: 0.8,
+        width_m: 0.45,
+        height_m: 0.9,
+    });
+    scene.validate().expect("valid pocket");
+    let grid = OccupancyGrid::from_scene(&scene, &RobotConfig::default());
+    assert!(
+        grid.is_free((-9.6, -1.4)),
+        "the pocket itself has room for the base"
+    );
+    assert!(grid.plan((0.0, 2.0), (-9.6, -1.4)).is_none());
+    assert!(
+        grid.plan((-9.6, -1.6), (-9.6, -1.2)).is_some(),
+        "inside the pocket it can move"
+    );
+}
+
+#[test]
+fn base_collision_follows_the_footprint() {
+    let scene = Scene::empty_paper_room();
+    let robot = RobotConfig::default();
+    let facing = std::f64::consts::FRAC_PI_2;
+    let half_length = 0.5 * robot.footprint.length_m;
+    let edge = 5.8 - half_length;
+    assert!(!base_collides(
+        &scene,
+        &robot,
+        BasePose {
+            x_m: 0.0,
+            y_m: edge - 0.01,
+            yaw_rad: facing
+        }
+    ));
+    assert!(base_collides(
+        &scene,
+        &robot,
+        BasePose {
+            x_m: 0.0,
+            y_m: edge + 0.01,
+            yaw_rad: facing
+        }
+    ));
+    // Turned sideways the narrower side faces the table.
+    let half_width = 0.5 * robot.footprint.width_m;
+    assert!(!base_collides(
+        &scene,
+        &robot,
+        BasePose {
+            x_m: 0.0,
+            y_m: 5.8 - half_width - 0.01,
+            yaw_rad: 0.0
+        }
+    ));
+    assert!(
+        base_collides(
+            &scene,
+            &robot,
+            BasePose {
+                x_m: 9.8,
+                y_m: 2.0,
+                yaw_rad: 0.0
+            }
+        ),
+        "wall"
+    );
+}
+
+#[test]
+fn obstacle_boxes_hold_the_base_table_and_near_chairs_only() {
+    let mut scene = Scene::empty_paper_room();
+    scene.chairs.push(Chair::new(0.6, 5.0, 0.0));
+    scene.chairs.push(Chair::new(5.0, 5.0, 0.0));
+    let robot = RobotConfig::default();
+    let base = BasePose {
+        x_m: 0.0,
+        y_m: 5.2,
+        yaw_rad: std::f64::consts::FRAC_PI_2,
+    };
+    let boxes = scene.obstacle_boxes(&robot, base);
+    assert_eq!(boxes.len(), 3, "own base, table, the near chair");
+    assert!(
+        (boxes[0].center.x - 0.0).abs() < 1e-12
+            && (boxes[0].half_extents.z * 2.0 - robot.footprint.body_height_m).abs() < 1e-12
+    );
+    assert!(
+        (boxes[1].center.y - 6.0).abs() < 1e-12 && (boxes[1].half_extents.z - 0.5).abs() < 1e-12
+    );
+    assert!((boxes[2].center.x - 0.6).abs() < 1e-12);
+}

@@ -1,0 +1,236 @@
+//! Scene and robot files: every bad-file case of issue 2 fails with an error naming the file
+//! and the field; good files round-trip.
+
+use std::path::PathBuf;
+
+use world::scene::{Chair, SCENE_FORMAT_VERSION};
+use world::{RobotConfig, RobotError, Scene, SceneError};
+
+fn data_dir() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("data")
+}
+
+fn example_text() -> String {
+    std::fs::read_to_string(data_dir().join("example-scene.toml"))
+        .expect("example scene is part of the crate")
+}
+
+/// Parses `text` as if it were the file `bad.toml`, expecting a failure; returns the message.
+fn scene_error(text: &str) -> (SceneError, String) {
+    let err = Scene::from_toml_str(text, "bad.toml").expect_err("the scene must be rejected");
+    let msg = err.to_string();
+    assert!(msg.contains("bad.toml"), "error must name the file: {msg}");
+    (err, msg)
+}
+
+#[test]
+fn example_scene_loads_and_is_valid() {
+    let scene = Scene::load(data_dir().join("example-scene.toml")).expect("example scene loads");
+    assert_eq!(scene.format_version, SCENE_FORMAT_VERSION);
+    assert_eq!(scene.banquet_table.segment_count, 9);
+    assert!(!scene.chairs.is_empty());
+    assert!(!scene.targets.is_empty());
+}
+
+#[test]
+fn unknown_field_is_named() {
+    let text = example_text().replacen("[room]", "[room]\nceiling_m = 3.0", 1);
+    let (err, msg) = scene_error(&text);
+    assert!(matches!(err, SceneError::Parse { .. }), "{msg}");
+    assert!(msg.contains("ceiling_m"), "{msg}");
+}
+
+#[test]
+fn nan_is_named() {
+    let text = example_text().replacen("x_m = 1.5", "x_m = nan", 1);
+    assert_ne!(
+        text,
+        example_text(),
+        "fixture must contain a chair at x_m = 1.5"
+    );
+    let (err, msg) = scene_error(&text);
+    assert!(matches!(err, SceneError::Invalid { .. }), "{msg}");
+    assert!(msg.contains("chairs[0].x_m"), "{msg}");
+}
+
+#[test]
+fn overlapping_chairs_are_rejected() {
+    let mut scene = Scene::load(data_dir().join("example-scene.toml")).expect("example loads");
+    let first = scene.chairs[0];
+    scene
+        .chairs
+        .push(Chair::new(first.x_m + 0.2, first.y_m, 0.3));
+    let text = scene.to_toml_string().expect("serialises");
+    let (_, msg) = scene_error(&text);
+    let last = scene.chairs.len() - 1;
+    assert!(
+        msg.contains(&format!("chairs[{last}]")) && msg.contains("overlaps chairs[0]"),
+        "{msg}"
+    );
+}
+
+#[test]
+fn chair_overlapping_the_table_is_rejected() {
+    let mut scene = Scene::empty_paper_room();
+    scene.chairs.push(Chair::new(0.0, 5.7, 0.0));
+    let text = scene.to_toml_string().expect("serialises");
+    let (_, msg) = scene_error(&text);
+    assert!(
+        msg.contains("chairs[0]") && msg.contains("banquet table"),
+        "{msg}"
+    );
+}
+
+#[test]
+fn chair_outside_the_room_is_rejected() {
+    let mut scene = Scene::empty_paper_room();
+    // Centre inside, but the footprint crosses the east wall.
+    scene.chairs.push(Chair::new(9.9, 5.0, 0.0));
+    let text = scene.to_toml_string().expect("serialises");
+    let (_, msg) = scene_error(&text);
+    assert!(
+        msg.contains("chairs[0]") && msg.contains("outside the room"),
+        "{msg}"
+    );
+}
+
+#[test]
+fn target_off_the_table_is_rejected() {
+    let mut scene = Scene::empty_paper_room();
+    scene.targets.push(world::UnloadTarget::on_center_line(2.0));
+    scene.targets.push(world::UnloadTarget {
+        x_m: 7.5,
+        y_m: 6.0,
+        z_m: 1.3,
+    });
+    let text = scene.to_toml_string().expect("serialises");
+    let (_, msg) = scene_error(&text);
+    assert!(
+        msg.contains("targets[1]") && msg.contains("off the banquet table"),
+        "{msg}"
+    );
+
+    let mut low = Scene::empty_paper_room();
+    low.targets.push(world::UnloadTarget {
+        x_m: 0.0,
+        y_m: 6.0,
+        z_m: 0.9,
+    });
+    let (_, msg) = scene_error(&low.to_toml_string().expect("serialises"));
+    assert!(msg.contains("targets[0].z_m"), "{msg}");
+}
+
+#[test]
+fn overlapping_tables_are_rejected() {
+    let mut scene = Scene::empty_paper_room();
+    scene.loading_table.center_y_m = 5.9;
+    let (_, msg) = scene_error(&scene.to_toml_string().expect("serialises"));
+    assert!(
+        msg.contains("loading_table") && msg.contains("overlaps"),
+        "{msg}"
+    );
+}
+
+#[test]
+fn robot_start_on_furniture_is_rejected() {
+    let mut scene = Scene::empty_paper_room();
+    scene.robot_start.y_m = 6.0;
+    let (_, msg) = scene_error(&scene.to_toml_string().expect("serialises"));
+    assert!(msg.contains("robot_start"), "{msg}");
+}
+
+#[test]
+fn future_version_is_reported_as_such() {
+    let text = example_text().replacen("format_version = 1", "format_version = 2", 1);
+    let (err, msg) = scene_error(&text);
+    assert!(
+        matches!(
+            err,
+            SceneError::UnsupportedVersion {
+                found: 2,
+                supported: 1,
+                ..
+            }
+        ),
+        "{msg}"
+    );
+}
+
+#[test]
+fn missing_field_and_wrong_type_are_named() {
+    let text = example_text().replacen("segment_count = 9", "", 1);
+    let (_, msg) = scene_error(&text);
+    assert!(msg.contains("segment_count"), "{msg}");
+    let text = example_text().replacen("segment_count = 9", "segment_count = \"nine\"", 1);
+    let (_, msg) = scene_error(&text);
+    assert!(msg.contains("segment_count"), "{msg}");
+}
+
+#[test]
+fn missing_file_and_bad_extension() {
+    let err = Scene::load("/nonexistent/dir/scene.toml").expect_err("no such file");
+    assert!(matches!(err, SceneError::Read { .. }));
+    assert!(err.to_string().contains("/nonexistent/dir/scene.toml"));
+    let err = Scene::load("scene.yaml").expect_err("unknown extension");
+    assert!(matches!(err, SceneError::UnknownExtension { .. }));
+}
+
+#[test]
+fn toml_and_json_round_trip() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let scene = world::generate::evaluation_scene(3, 25, 14);
+    for name in ["s.toml", "s.json"] {
+        let path = dir.path().join(name);
+        scene.save(&path).expect("saves");
+        let back = Scene::load(&path).expect("loads");
+        assert_eq!(back, scene, "{name}");
+    }
+}
+
+#[test]
+fn default_robot_file_equals_default() {
+    let loaded = RobotConfig::load(data_dir().join("robot.toml")).expect("robot.toml loads");
+    let default = RobotConfig::default();
+    assert_eq!(
+        loaded.to_toml_string().expect("serialises"),
+        default.to_toml_string().expect("serialises"),
+        "data/robot.toml must stay equal to RobotConfig::default()"
+    );
+}
+
+fn robot_error(text: &str) -> String {
+    let err = RobotConfig::from_toml_str(text, "robot-bad.toml").expect_err("must be rejected");
+    let msg = err.to_string();
+    assert!(
+        msg.contains("robot-bad.toml"),
+        "error must name the file: {msg}"
+    );
+    msg
+}
+
+#[test]
+fn bad_robot_files_name_the_field() {
+    let good = RobotConfig::default().to_toml_string().expect("serialises");
+    assert!(RobotConfig::from_toml_str(&good, "robot.toml").is_ok());
+
+    let msg = robot_error(&good.replacen("speed_mps = 0.4", "speed_mps = -0.4", 1));
+    assert!(msg.contains("speed_mps"), "{msg}");
+    let msg = robot_error(&good.replacen("nav_noise_sigma_m = 0.1", "nav_noise_sigma_m = nan", 1));
+    assert!(
+        msg.contains("nav_noise_sigma_m") && msg.contains("finite"),
+        "{msg}"
+    );
+    let msg = robot_error(&good.replacen("speed_mps = 0.4", "speed_mps = 0.4\nturbo = true", 1));
+    assert!(msg.contains("turbo"), "{msg}");
+    let msg = robot_error(&good.replacen("format_version = 1", "format_version = 7", 1));
+    assert!(msg.contains("format_version"), "{msg}");
+
+    let mut far_mount = RobotConfig::default();
+    far_mount.place.mount.forward_m = 2.0;
+    let msg = robot_error(&far_mount.to_toml_string().expect("serialises"));
+    assert!(msg.contains("place.mount"), "{msg}");
+    assert!(matches!(
+        RobotConfig::from_toml_str(&far_mount.to_toml_string().expect("serialises"), "x.toml"),
+        Err(RobotError::Invalid { .. })
+    ));
+}
