@@ -84,8 +84,10 @@ mod tests {
 
     #[test]
     fn opposite_rotation_vectors_at_pi_are_the_same_rotation() {
-        let a = TcpPose::from_array([0.0, 0.0, 0.0, 0.0, 2.2214414690791831, -2.2214414690791831]);
-        let b = TcpPose::from_array([0.0, 0.0, 0.0, 0.0, -2.2214414690791831, 2.2214414690791831]);
+        // Angle pi about (0, 1, -1)/sqrt(2): both signs of the vector are the same rotation.
+        let h = std::f64::consts::PI / 2f64.sqrt();
+        let a = TcpPose::from_array([0.0, 0.0, 0.0, 0.0, h, -h]);
+        let b = TcpPose::from_array([0.0, 0.0, 0.0, 0.0, -h, h]);
         assert!(a.orientation_distance_rad(&b) < 1e-9);
         let c = TcpPose::from_array([0.3, 0.4, 0.0, 0.0, 0.0, 0.5]);
         assert!((c.position_distance_m(&a) - 0.5).abs() < 1e-12);

@@ -80,7 +80,7 @@ def _():
     t0 = r.getTimestamp()
     time.sleep(0.5)
     t1 = r.getTimestamp()
-    assert 0.35 <= t1 - t0 <= 0.65, (t0, t1)
+    assert 0.25 <= t1 - t0 <= 0.9, (t0, t1)
     # 500 Hz: consecutive distinct timestamps are 2 ms apart.
     seen = set()
     deadline = time.monotonic() + 0.2

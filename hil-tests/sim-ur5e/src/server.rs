@@ -455,7 +455,7 @@ fn rtde_handle(
             let recipe_id = if valid { 1 } else { 0 };
             {
                 let mut c = lock(conn);
-                c.output = valid.then(|| OutputRecipe {
+                c.output = valid.then_some(OutputRecipe {
                     id: recipe_id,
                     divisor,
                     fields,

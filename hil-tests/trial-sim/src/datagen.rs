@@ -602,3 +602,9 @@ fn write_manifest(dataset: &Dataset, cfg: &DatagenConfig, scene_files: &[String]
 pub fn is_labelled(row: usize, col: usize) -> bool {
     in_candidate_area(row, col)
 }
+
+/// Sets the number of worker threads of the global pool used by [`simulate`]; must run
+/// before the first parallel work.
+pub fn set_worker_threads(threads: usize) -> Result<(), String> {
+    rayon::ThreadPoolBuilder::new().num_threads(threads.max(1)).build_global().map_err(|e| e.to_string())
+}

@@ -22,5 +22,5 @@ pub mod trial;
 
 pub use trial::{
     ArmModel, CellCounts, HeatmapArea, TrialOutcome, TrialResult, TrialSimulator, Ur5eArm, cell_rng, ground_truth_heatmap,
-    ground_truth_heatmap_in, run_trial, simulate_cells,
+    ground_truth_heatmap_in, ground_truth_heatmaps, run_trial, simulate_cells, task_feasibility,
 };

@@ -249,3 +249,39 @@ pub fn ground_truth_heatmap_in(
     let mut sim = TrialSimulator::new(scene, robot);
     simulate_cells(&mut sim, target, side, area, trials_per_cell, seed, |_, _, _, _, _| {}).heatmap()
 }
+
+/// Ground-truth heatmaps of several (target, side) pairs of one scene, in parallel (rayon).
+/// Pair `i` uses the seed `mix_seed(seed, i, 0)`, so the result does not depend on threads.
+pub fn ground_truth_heatmaps(
+    scene: &Scene,
+    robot: &RobotConfig,
+    pairs: &[([f64; 3], Side)],
+    area: HeatmapArea,
+    trials_per_cell: u16,
+    seed: u64,
+) -> Vec<Heatmap> {
+    use rayon::prelude::*;
+    pairs
+        .par_iter()
+        .enumerate()
+        .map(|(i, &(target, side))| ground_truth_heatmap_in(scene, robot, target, side, area, trials_per_cell, mix_seed(seed, i as u64, 0)))
+        .collect()
+}
+
+/// Task-level feasibility of one heatmap over `area` (paper eq. 4 in closed form): the
+/// expectation of Fea^m at a cell drawn by Smp (probability proportional to its value),
+/// F = sum(v^2) / sum(v); 0 when every cell is 0.
+pub fn task_feasibility(heatmap: &Heatmap, area: HeatmapArea) -> f64 {
+    let mut sum = 0.0f64;
+    let mut sum_sq = 0.0f64;
+    for row in 0..CROP_ROWS {
+        for col in 0..CROP_COLS {
+            if area.contains(row, col) {
+                let v = f64::from(heatmap.get(row, col).max(0.0));
+                sum += v;
+                sum_sq += v * v;
+            }
+        }
+    }
+    if sum > 0.0 { sum_sq / sum } else { 0.0 }
+}

@@ -1,9 +1,190 @@
-//! `grop render`.
+//! `grop render`: a scene seen from above with ground-truth feasibility heatmaps overlaid, like
+//! the paper's Fig. 2 "combined heatmaps". With no arguments it generates an evaluation scene
+//! (20 chairs over both sides, 3 targets), simulates both sides of every target and writes
+//! `out/render.png`, the scene file beside it and a montage of the network-input crops.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::Context;
+use trial_sim::{HeatmapArea, ground_truth_heatmaps, task_feasibility};
+use world::view::{self, RgbImage, RoomView, Side};
+use world::{RobotConfig, Scene};
 
 /// Arguments of `grop render`.
 #[derive(clap::Args, Debug)]
-pub struct Args {}
+pub struct Args {
+    /// Scene file to render (TOML/JSON); default: generate one (see --kind).
+    #[arg(long)]
+    pub scene: Option<PathBuf>,
+    /// Generated scene: evaluation (chairs on both sides) or training (near side only).
+    #[arg(long, value_enum, default_value_t = KindArg::Evaluation)]
+    pub kind: KindArg,
+    /// Seed of the generated scene and of the trials.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Chairs in a generated evaluation scene (15 / 20 / 25 in the paper).
+    #[arg(long, default_value_t = 20)]
+    pub chairs: usize,
+    /// Targets in a generated scene.
+    #[arg(long, default_value_t = 3)]
+    pub targets: usize,
+    /// Robot file (TOML/JSON); default: the built-in robot.
+    #[arg(long)]
+    pub robot: Option<PathBuf>,
+    /// Sides to simulate.
+    #[arg(long, value_enum, default_value_t = SidesArg::Both)]
+    pub sides: SidesArg,
+    /// Trials per cell (more = smoother heatmaps).
+    #[arg(long, default_value_t = 20)]
+    pub trials_per_cell: u16,
+    /// Cells to simulate: the paper's 24 x 8 candidate area or the whole 64 x 32 crop.
+    #[arg(long, value_enum, default_value_t = AreaArg::Candidate)]
+    pub area: AreaArg,
+    /// Output PNG.
+    #[arg(long, default_value = "out/render.png")]
+    pub out: PathBuf,
+    /// Picture resolution (pixels per metre; 64 makes a crop cell 4 px).
+    #[arg(long, default_value_t = 64.0)]
+    pub pixels_per_m: f64,
+    /// Draw the whole room instead of the band around the banquet table.
+    #[arg(long)]
+    pub whole_room: bool,
+}
 
-pub fn run(_args: Args) -> anyhow::Result<()> {
-    anyhow::bail!("`grop render` is not built yet")
+/// `--kind` values.
+#[derive(clap::ValueEnum, Clone, Copy, Debug)]
+pub enum KindArg {
+    /// evaluation_scene(seed, chairs, targets).
+    Evaluation,
+    /// training_scenes(seed, 1, targets)[0].
+    Training,
+}
+
+/// `--sides` values.
+#[derive(clap::ValueEnum, Clone, Copy, Debug)]
+pub enum SidesArg {
+    /// Near side only.
+    Near,
+    /// Far side only.
+    Far,
+    /// Both sides.
+    Both,
+}
+
+/// `--area` values.
+#[derive(clap::ValueEnum, Clone, Copy, Debug)]
+pub enum AreaArg {
+    /// The 24 x 8 candidate cells.
+    Candidate,
+    /// All 64 x 32 cells of each crop.
+    Whole,
+}
+
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let scene = match &args.scene {
+        Some(path) => Scene::load(path)?,
+        None => match args.kind {
+            KindArg::Evaluation => world::generate::evaluation_scene(args.seed, args.chairs, args.targets),
+            KindArg::Training => world::generate::training_scenes(args.seed, 1, args.targets)
+                .pop()
+                .context("the generator returned no scene")?,
+        },
+    };
+    scene.validate().map_err(|e| anyhow::anyhow!("scene: {e}"))?;
+    let robot = match &args.robot {
+        Some(path) => RobotConfig::load(path)?,
+        None => RobotConfig::default(),
+    };
+    if args.trials_per_cell == 0 {
+        anyhow::bail!("--trials-per-cell must be at least 1");
+    }
+    let sides: &[Side] = match args.sides {
+        SidesArg::Near => &[Side::Near],
+        SidesArg::Far => &[Side::Far],
+        SidesArg::Both => &Side::BOTH,
+    };
+    let area = match args.area {
+        AreaArg::Candidate => HeatmapArea::Candidate,
+        AreaArg::Whole => HeatmapArea::WholeCrop,
+    };
+    let pairs: Vec<([f64; 3], Side)> =
+        scene.targets.iter().flat_map(|t| sides.iter().map(move |&s| (t.as_array(), s))).collect();
+    let heatmaps = ground_truth_heatmaps(&scene, &robot, &pairs, area, args.trials_per_cell, args.seed);
+
+    let room_view = if args.whole_room {
+        RoomView::whole_room(&scene, args.pixels_per_m)
+    } else {
+        let bt = &scene.banquet_table;
+        RoomView::window(
+            (bt.x_min_m() - 0.75).max(scene.room.x_min_m),
+            (bt.x_max_m() + 0.75).min(scene.room.x_max_m),
+            (bt.y_min_m() - 2.2).max(scene.room.y_min_m),
+            (bt.y_max_m() + 2.2).min(scene.room.y_max_m),
+            args.pixels_per_m,
+        )
+    };
+    let mut picture = view::render_room(&scene, &room_view);
+    let only_candidates = matches!(area, HeatmapArea::Candidate);
+    for ((target, side), heatmap) in pairs.iter().zip(&heatmaps) {
+        view::overlay_heatmap(&mut picture, &room_view, target[0], *side, heatmap, only_candidates);
+    }
+    // Targets drawn again on top of the heatmaps.
+    for target in &scene.targets {
+        view::draw_marker(&mut picture, &room_view, target.x_m, target.y_m, 0.06, view::Rgb([30, 60, 230]));
+    }
+    if let Some(dir) = args.out.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    }
+    picture.save(&args.out).with_context(|| format!("writing {}", args.out.display()))?;
+
+    let crops_path = sibling(&args.out, "crops.png");
+    crop_montage(&scene, &pairs, &heatmaps, only_candidates)
+        .save(&crops_path)
+        .with_context(|| format!("writing {}", crops_path.display()))?;
+    let scene_path = sibling(&args.out, "scene.toml");
+    scene.save(&scene_path)?;
+
+    println!("target  x_m     side  F (eq. 4)  best cell");
+    for ((target, side), heatmap) in pairs.iter().zip(&heatmaps) {
+        let ((row, col), best) = heatmap.argmax();
+        println!(
+            "        {:>6.2}  {:<4}  {:.3}      {:.2} at ({row}, {col})",
+            target[0],
+            side.name(),
+            task_feasibility(heatmap, area),
+            best
+        );
+    }
+    println!("wrote {}, {}, {}", args.out.display(), crops_path.display(), scene_path.display());
+    Ok(())
+}
+
+/// `out/render.png` -> `out/render.<suffix>`.
+fn sibling(path: &Path, suffix: &str) -> PathBuf {
+    let stem = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "render".into());
+    path.with_file_name(format!("{stem}.{suffix}"))
+}
+
+/// The network's view of every (target, side): gray crop with its heatmap, 4x scaled, one row
+/// per target, one column per side.
+fn crop_montage(scene: &Scene, pairs: &[([f64; 3], Side)], heatmaps: &[world::Heatmap], only_candidates: bool) -> RgbImage {
+    const SCALE: u32 = 4;
+    const GAP: u32 = 6;
+    let n_targets = pairs.iter().map(|p| p.0[0].to_bits()).collect::<std::collections::BTreeSet<_>>().len().max(1);
+    let cols = pairs.len().div_ceil(n_targets).max(1) as u32;
+    let rows = n_targets as u32;
+    let (cw, ch) = (view::CROP_COLS as u32 * SCALE, view::CROP_ROWS as u32 * SCALE);
+    let mut montage = RgbImage::from_pixel(cols * (cw + GAP) + GAP, rows * (ch + GAP) + GAP, view::Rgb([255, 255, 255]));
+    for (i, ((target, side), heatmap)) in pairs.iter().zip(heatmaps).enumerate() {
+        let crop = view::render_crop(scene, target[0], *side);
+        let tile = view::combined_crop_image(&crop, heatmap, SCALE, only_candidates);
+        let (r, c) = ((i as u32) / cols, (i as u32) % cols);
+        let (x0, y0) = (GAP + c * (cw + GAP), GAP + r * (ch + GAP));
+        for (x, y, p) in tile.enumerate_pixels() {
+            if x0 + x < montage.width() && y0 + y < montage.height() {
+                montage.put_pixel(x0 + x, y0 + y, *p);
+            }
+        }
+    }
+    montage
 }

@@ -35,9 +35,13 @@ impl ObstacleBox {
     /// The point `p` (world frame) in the box's own frame (origin at the centre, axes along the
     /// box edges).
     #[inline]
-    fn to_local(&self, p: &Vector3<f64>, sin_yaw: f64, cos_yaw: f64) -> Vector3<f64> {
+    fn point_in_box_frame(&self, p: &Vector3<f64>, sin_yaw: f64, cos_yaw: f64) -> Vector3<f64> {
         let d = p - self.center.coords;
-        Vector3::new(cos_yaw * d.x + sin_yaw * d.y, -sin_yaw * d.x + cos_yaw * d.y, d.z)
+        Vector3::new(
+            cos_yaw * d.x + sin_yaw * d.y,
+            -sin_yaw * d.x + cos_yaw * d.y,
+            d.z,
+        )
     }
 
     /// Radius of the sphere around the centre that holds the box.
@@ -48,8 +52,8 @@ impl ObstacleBox {
     /// Whether the capsule from `a` to `b` (world frame) with radius `radius_m` touches the box.
     pub fn intersects_capsule(&self, a: &Vector3<f64>, b: &Vector3<f64>, radius_m: f64) -> bool {
         let (s, c) = self.yaw_rad.sin_cos();
-        let la = self.to_local(a, s, c);
-        let lb = self.to_local(b, s, c);
+        let la = self.point_in_box_frame(a, s, c);
+        let lb = self.point_in_box_frame(b, s, c);
         segment_aabb_within(&la, &lb, &self.half_extents, radius_m)
     }
 }
@@ -198,13 +202,33 @@ impl ArmCollisionModel {
         let tcp = o[6] + z[6] * tcp_offset_m;
         let w = |v: Vector3<f64>| world_from_arm.transform_point(&Point3::from(v)).coords;
         [
-            Capsule { a: w(up), b: w(ue), radius_m: self.upper_arm_radius_m + m },
-            Capsule { a: w(fs), b: w(fe), radius_m: self.forearm_radius_m + m },
+            Capsule {
+                a: w(up),
+                b: w(ue),
+                radius_m: self.upper_arm_radius_m + m,
+            },
+            Capsule {
+                a: w(fs),
+                b: w(fe),
+                radius_m: self.forearm_radius_m + m,
+            },
             // Wrist 1 housing along joint axis 4 (o3 -> o4), wrist 2 housing along axis 5.
-            Capsule { a: w(fe), b: w(o[4]), radius_m: self.wrist_radius_m + m },
-            Capsule { a: w(o[4]), b: w(o[5]), radius_m: self.wrist_radius_m + m },
+            Capsule {
+                a: w(fe),
+                b: w(o[4]),
+                radius_m: self.wrist_radius_m + m,
+            },
+            Capsule {
+                a: w(o[4]),
+                b: w(o[5]),
+                radius_m: self.wrist_radius_m + m,
+            },
             // Wrist 3, coupling and gripper: o5 -> flange -> TCP are collinear.
-            Capsule { a: w(o[5]), b: w(tcp), radius_m: self.gripper_radius_m + m },
+            Capsule {
+                a: w(o[5]),
+                b: w(tcp),
+                radius_m: self.gripper_radius_m + m,
+            },
         ]
     }
 }
@@ -243,7 +267,8 @@ mod tests {
 
     #[test]
     fn capsule_box_face_edge_and_corner_cases() {
-        let b = ObstacleBox::from_min_max(Point3::new(-1.0, -1.0, -1.0), Point3::new(1.0, 1.0, 1.0));
+        let b =
+            ObstacleBox::from_min_max(Point3::new(-1.0, -1.0, -1.0), Point3::new(1.0, 1.0, 1.0));
         // Through the box.
         assert!(b.intersects_capsule(&v(-3.0, 0.0, 0.0), &v(3.0, 0.0, 0.0), 0.01));
         // Parallel to a face at 0.1 m: touches with r 0.11, not with r 0.09.
@@ -273,9 +298,17 @@ mod tests {
 
     #[test]
     fn floor_counts_as_obstacle() {
-        let c = [Capsule { a: v(0.0, 0.0, 0.03), b: v(1.0, 0.0, 0.5), radius_m: 0.05 }];
+        let c = [Capsule {
+            a: v(0.0, 0.0, 0.03),
+            b: v(1.0, 0.0, 0.5),
+            radius_m: 0.05,
+        }];
         assert!(capsules_collide(&c, &[]));
-        let c = [Capsule { a: v(0.0, 0.0, 0.3), b: v(1.0, 0.0, 0.5), radius_m: 0.05 }];
+        let c = [Capsule {
+            a: v(0.0, 0.0, 0.3),
+            b: v(1.0, 0.0, 0.5),
+            radius_m: 0.05,
+        }];
         assert!(!capsules_collide(&c, &[]));
     }
 }

@@ -152,8 +152,8 @@ impl Ur5e {
     pub fn forward_matrix(&self, q: &Joints) -> (Matrix3<f64>, Vector3<f64>) {
         let mut r = Matrix3::identity();
         let mut t = Vector3::zeros();
-        for i in 0..6 {
-            let (ri, ti) = dh_link(self.a_m[i], self.d_m[i], self.alpha_rad[i], q[i]);
+        for (i, qi) in q.iter().enumerate() {
+            let (ri, ti) = dh_link(self.a_m[i], self.d_m[i], self.alpha_rad[i], *qi);
             t += r * ti;
             r *= ri;
         }
@@ -165,8 +165,8 @@ impl Ur5e {
         let mut frames = [Isometry3::identity(); 7];
         let mut r = Matrix3::identity();
         let mut t = Vector3::zeros();
-        for i in 0..6 {
-            let (ri, ti) = dh_link(self.a_m[i], self.d_m[i], self.alpha_rad[i], q[i]);
+        for (i, qi) in q.iter().enumerate() {
+            let (ri, ti) = dh_link(self.a_m[i], self.d_m[i], self.alpha_rad[i], *qi);
             t += r * ti;
             r *= ri;
             frames[i + 1] = isometry(r, t);
@@ -181,8 +181,8 @@ impl Ur5e {
         let mut axes = [Vector3::z(); 7];
         let mut r = Matrix3::identity();
         let mut t = Vector3::zeros();
-        for i in 0..6 {
-            let (ri, ti) = dh_link(self.a_m[i], self.d_m[i], self.alpha_rad[i], q[i]);
+        for (i, qi) in q.iter().enumerate() {
+            let (ri, ti) = dh_link(self.a_m[i], self.d_m[i], self.alpha_rad[i], *qi);
             t += r * ti;
             r *= ri;
             origins[i + 1] = t;
@@ -306,8 +306,17 @@ mod tests {
     fn assert_pose(iso: &Isometry3<f64>, p: [f64; 3], rotvec: [f64; 3]) {
         let expected_r = Rotation3::new(Vector3::from(rotvec));
         let dp = (iso.translation.vector - Vector3::from(p)).norm();
-        assert!(dp < 1e-4, "position {:?} vs {:?}", iso.translation.vector, p);
-        let angle = iso.rotation.to_rotation_matrix().rotation_to(&expected_r).angle();
+        assert!(
+            dp < 1e-4,
+            "position {:?} vs {:?}",
+            iso.translation.vector,
+            p
+        );
+        let angle = iso
+            .rotation
+            .to_rotation_matrix()
+            .rotation_to(&expected_r)
+            .angle();
         assert!(angle < 1e-4, "rotation off by {angle} rad");
     }
 

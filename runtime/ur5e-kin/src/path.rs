@@ -26,7 +26,12 @@ pub struct JointPathSettings {
 
 impl Default for JointPathSettings {
     fn default() -> Self {
-        Self { step_rad: 0.3, edge_resolution_rad: 0.05, max_samples: 5000, shortcut_attempts: 200 }
+        Self {
+            step_rad: 0.3,
+            edge_resolution_rad: 0.05,
+            max_samples: 5000,
+            shortcut_attempts: 200,
+        }
     }
 }
 
@@ -77,8 +82,14 @@ impl Checker<'_> {
     /// Straight joint-space edge, checked at `edge_resolution_rad` (the end point included,
     /// the start point assumed valid).
     fn edge_free(&self, a: &Joints, b: &Joints) -> bool {
-        let steps = (max_norm(a, b) / self.cfg.path.edge_resolution_rad).ceil().max(1.0) as usize;
-        (1..=steps).all(|k| !self.scene.collides(self.cfg, &lerp(a, b, k as f64 / steps as f64)))
+        let steps = (max_norm(a, b) / self.cfg.path.edge_resolution_rad)
+            .ceil()
+            .max(1.0) as usize;
+        (1..=steps).all(|k| {
+            !self
+                .scene
+                .collides(self.cfg, &lerp(a, b, k as f64 / steps as f64))
+        })
     }
 }
 
@@ -111,8 +122,15 @@ fn extend(tree: &mut Vec<Node>, q: &Joints, check: &Checker<'_>) -> Extend {
     if !check.edge_free(&from, &target) {
         return Extend::Trapped;
     }
-    tree.push(Node { q: target, parent: near });
-    if reached { Extend::Reached(tree.len() - 1) } else { Extend::Advanced(tree.len() - 1) }
+    tree.push(Node {
+        q: target,
+        parent: near,
+    });
+    if reached {
+        Extend::Reached(tree.len() - 1)
+    } else {
+        Extend::Advanced(tree.len() - 1)
+    }
 }
 
 fn connect(tree: &mut Vec<Node>, q: &Joints, check: &Checker<'_>) -> Option<usize> {
@@ -146,7 +164,10 @@ pub fn plan_joint_path(
     obstacles: &[ObstacleBox],
     seed: u64,
 ) -> Result<Vec<Joints>, JointPathError> {
-    let check = Checker { cfg, scene: ArmScene::new(cfg, base, obstacles) };
+    let check = Checker {
+        cfg,
+        scene: ArmScene::new(cfg, base, obstacles),
+    };
     if !check.valid(start) {
         return Err(JointPathError::InvalidStart);
     }
@@ -161,14 +182,24 @@ pub fn plan_joint_path(
     }
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let limits = &cfg.arm.limits;
-    let mut tree_a = vec![Node { q: *start, parent: 0 }];
-    let mut tree_b = vec![Node { q: *goal, parent: 0 }];
+    let mut tree_a = vec![Node {
+        q: *start,
+        parent: 0,
+    }];
+    let mut tree_b = vec![Node {
+        q: *goal,
+        parent: 0,
+    }];
     // `a_is_start` tracks which tree grows from the start as the trees swap roles.
     let mut a_is_start = true;
     for sample in 1..=cfg.path.max_samples {
         let q_rand: Joints = core::array::from_fn(|j| {
             let (lo, hi) = (limits.lower_rad[j], limits.upper_rad[j]);
-            if hi > lo { rng.random_range(lo..hi) } else { lo }
+            if hi > lo {
+                rng.random_range(lo..hi)
+            } else {
+                lo
+            }
         });
         let new = match extend(&mut tree_a, &q_rand, &check) {
             Extend::Reached(i) | Extend::Advanced(i) => Some(i),
@@ -177,20 +208,28 @@ pub fn plan_joint_path(
         if let Some(i) = new {
             let q_new = tree_a[i].q;
             if let Some(j) = connect(&mut tree_b, &q_new, &check) {
-                let (from_start, to_goal) =
-                    if a_is_start { (branch(&tree_a, i), branch(&tree_b, j)) } else { (branch(&tree_b, j), branch(&tree_a, i)) };
+                let (from_start, to_goal) = if a_is_start {
+                    (branch(&tree_a, i), branch(&tree_b, j))
+                } else {
+                    (branch(&tree_b, j), branch(&tree_a, i))
+                };
                 // from_start runs meeting point -> start; to_goal runs meeting point -> goal.
                 let mut path: Vec<Joints> = from_start.into_iter().rev().collect();
                 path.extend(to_goal.into_iter().skip(1));
                 shortcut(&mut path, &check, &mut rng);
-                log::debug!("joint path: {} waypoints after {sample} samples", path.len());
+                log::debug!(
+                    "joint path: {} waypoints after {sample} samples",
+                    path.len()
+                );
                 return Ok(path);
             }
         }
         core::mem::swap(&mut tree_a, &mut tree_b);
         a_is_start = !a_is_start;
     }
-    Err(JointPathError::NoPath { samples: cfg.path.max_samples })
+    Err(JointPathError::NoPath {
+        samples: cfg.path.max_samples,
+    })
 }
 
 /// Random shortcutting: join two random waypoints by a straight edge when it is free.

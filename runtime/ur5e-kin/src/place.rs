@@ -30,7 +30,12 @@ impl Default for ArmMount {
     /// 0.20 m ahead of the base centre on the centre line, 1.05 m above the floor, yawed by pi
     /// so that the DH zero pose (arm stretched along the arm base's -x) points forward.
     fn default() -> Self {
-        Self { forward_m: 0.20, lateral_m: 0.0, height_m: 1.05, yaw_rad: PI }
+        Self {
+            forward_m: 0.20,
+            lateral_m: 0.0,
+            height_m: 1.05,
+            yaw_rad: PI,
+        }
     }
 }
 
@@ -162,10 +167,16 @@ impl PlaceConfig {
             }
         }
         if m.height_m < 0.0 {
-            return err("mount.height_m", format!("{} m is below the floor", m.height_m));
+            return err(
+                "mount.height_m",
+                format!("{} m is below the floor", m.height_m),
+            );
         }
         if self.tcp_offset_m < 0.0 {
-            return err("tcp_offset_m", format!("{} m must not be negative", self.tcp_offset_m));
+            return err(
+                "tcp_offset_m",
+                format!("{} m must not be negative", self.tcp_offset_m),
+            );
         }
         if !(0.0..=PI / 2.0).contains(&self.down_tolerance_rad) {
             return err(
@@ -177,17 +188,28 @@ impl PlaceConfig {
             return err("tilt_azimuths", "at least one direction is needed".into());
         }
         let a = &self.arm;
-        if a.a_m.iter().chain(&a.d_m).chain(&a.alpha_rad).any(|v| !v.is_finite()) {
+        if a.a_m
+            .iter()
+            .chain(&a.d_m)
+            .chain(&a.alpha_rad)
+            .any(|v| !v.is_finite())
+        {
             return err("arm", "DH parameters must be finite".into());
         }
         for j in 0..6 {
             let (lo, hi) = (a.limits.lower_rad[j], a.limits.upper_rad[j]);
             if !(lo.is_finite() && hi.is_finite() && lo <= hi) {
-                return err("arm.limits", format!("joint {}: [{lo}, {hi}] is not a range", j + 1));
+                return err(
+                    "arm.limits",
+                    format!("joint {}: [{lo}, {hi}] is not a range", j + 1),
+                );
             }
         }
         if !(self.path.step_rad > 0.0 && self.path.edge_resolution_rad > 0.0) {
-            return err("path", "step_rad and edge_resolution_rad must be positive".into());
+            return err(
+                "path",
+                "step_rad and edge_resolution_rad must be positive".into(),
+            );
         }
         Ok(())
     }
@@ -237,19 +259,25 @@ impl<'a> ArmScene<'a> {
         let mut near = heapless::Vec::new();
         let mut all_near = false;
         for (i, o) in obstacles.iter().enumerate() {
-            if (o.center - shoulder).norm() <= reach + o.bounding_radius_m() {
-                if i > u16::MAX as usize || near.push(i as u16).is_err() {
-                    all_near = true;
-                    break;
-                }
+            let within = (o.center - shoulder).norm() <= reach + o.bounding_radius_m();
+            if within && (i > u16::MAX as usize || near.push(i as u16).is_err()) {
+                all_near = true;
+                break;
             }
         }
-        Self { world_from_arm, near, all_near, obstacles }
+        Self {
+            world_from_arm,
+            near,
+            all_near,
+            obstacles,
+        }
     }
 
     /// Whether the arm at `q` touches an obstacle or the floor.
     pub fn collides(&self, cfg: &PlaceConfig, q: &Joints) -> bool {
-        let caps = cfg.collision.capsules(&cfg.arm, &self.world_from_arm, q, cfg.tcp_offset_m);
+        let caps = cfg
+            .collision
+            .capsules(&cfg.arm, &self.world_from_arm, q, cfg.tcp_offset_m);
         if self.all_near {
             return capsules_collide(&caps, self.obstacles);
         }
@@ -293,19 +321,38 @@ fn max_link_reach_m(cfg: &PlaceConfig) -> f64 {
 fn config_is_finite(cfg: &PlaceConfig) -> bool {
     let m = &cfg.mount;
     let c = &cfg.collision;
-    [m.forward_m, m.lateral_m, m.height_m, m.yaw_rad, cfg.tcp_offset_m, cfg.down_tolerance_rad]
-        .iter()
-        .chain(cfg.arm.a_m.iter())
-        .chain(cfg.arm.d_m.iter())
-        .chain(cfg.arm.alpha_rad.iter())
-        .chain([c.upper_arm_radius_m, c.forearm_radius_m, c.wrist_radius_m, c.gripper_radius_m].iter())
-        .all(|v| v.is_finite())
+    [
+        m.forward_m,
+        m.lateral_m,
+        m.height_m,
+        m.yaw_rad,
+        cfg.tcp_offset_m,
+        cfg.down_tolerance_rad,
+    ]
+    .iter()
+    .chain(cfg.arm.a_m.iter())
+    .chain(cfg.arm.d_m.iter())
+    .chain(cfg.arm.alpha_rad.iter())
+    .chain(
+        [
+            c.upper_arm_radius_m,
+            c.forearm_radius_m,
+            c.wrist_radius_m,
+            c.gripper_radius_m,
+        ]
+        .iter(),
+    )
+    .all(|v| v.is_finite())
 }
 
 /// A rotation whose z column is the unit vector `z` (the x column is any perpendicular; the
 /// rotation about the tool axis only changes q6, see [`plan_place`]).
 fn frame_with_z(z: &Vector3<f64>) -> Matrix3<f64> {
-    let helper = if z.x.abs() < 0.9 { Vector3::x() } else { Vector3::y() };
+    let helper = if z.x.abs() < 0.9 {
+        Vector3::x()
+    } else {
+        Vector3::y()
+    };
     let x = (helper - z * z.dot(&helper)).normalize();
     let y = z.cross(&x);
     Matrix3::from_columns(&[x, y, *z])
@@ -330,10 +377,12 @@ pub fn plan_place(
     goal: Point3<f64>,
     obstacles: &[ObstacleBox],
 ) -> Result<PlacePlan, PlaceFailure> {
-    if !(base.x_m.is_finite() && base.y_m.is_finite() && base.yaw_rad.is_finite())
-        || !goal.coords.iter().all(|v| v.is_finite())
-        || !config_is_finite(cfg)
-    {
+    let finite = base.x_m.is_finite()
+        && base.y_m.is_finite()
+        && base.yaw_rad.is_finite()
+        && goal.coords.iter().all(|v| v.is_finite())
+        && config_is_finite(cfg);
+    if !finite {
         // Nothing is reachable at a NaN; validated configs never get here
         // (see [`PlaceConfig::validate`]).
         return Err(PlaceFailure::OutOfReach);
@@ -357,25 +406,31 @@ pub fn plan_place(
     let p5_nominal = goal_arm + Vector3::new(0.0, 0.0, wrist_lever);
     let shoulder = Vector3::new(0.0, 0.0, arm.d_m[0]);
     let max_wrist_m = (arm.a_m[1].abs() + arm.a_m[2].abs() + arm.d_m[4].abs()).hypot(d4);
-    if (p5_nominal - shoulder).norm() > max_wrist_m + slack
-        || p5_nominal.xy().norm() < d4 - slack
-    {
+    if (p5_nominal - shoulder).norm() > max_wrist_m + slack || p5_nominal.xy().norm() < d4 - slack {
         return Err(PlaceFailure::OutOfReach);
     }
 
     let scene = ArmScene::new(cfg, base, obstacles);
     // Azimuth (arm base frame) of the horizontal direction from the goal towards the arm base.
     let towards_base = (-goal_arm.y).atan2(-goal_arm.x);
-    let rings = if tol > 0.0 { cfg.tilt_rings as usize } else { 0 };
+    let rings = if tol > 0.0 {
+        cfg.tilt_rings as usize
+    } else {
+        0
+    };
     let azimuths = (cfg.tilt_azimuths as usize).max(1);
     let mut worst = PlaceFailure::OutOfReach;
 
     for ring in 0..=rings {
-        let tilt = if rings == 0 { 0.0 } else { tol * ring as f64 / rings as f64 };
+        let tilt = if rings == 0 {
+            0.0
+        } else {
+            tol * ring as f64 / rings as f64
+        };
         let directions = if ring == 0 { 1 } else { azimuths };
         for k in 0..directions {
             // Alternate around the preferred direction: 0, +1, -1, +2, -2, ... steps.
-            let step = (k + 1) / 2;
+            let step = k.div_ceil(2);
             let sign = if k % 2 == 1 { 1.0 } else { -1.0 };
             let az = towards_base + sign * step as f64 * TAU / azimuths as f64;
             // Tool axis z6 points from the flange to the object; the flange leans towards az.
@@ -386,7 +441,11 @@ pub fn plan_place(
             match place_with_axis(cfg, &scene, &rot, &flange) {
                 Ok(joints) => {
                     let flange_world = world_from_arm * arm.forward(&joints);
-                    return Ok(PlacePlan { joints, flange_world, tool_tilt_rad: tilt });
+                    return Ok(PlacePlan {
+                        joints,
+                        flange_world,
+                        tool_tilt_rad: tilt,
+                    });
                 }
                 Err(f) => worst = worst.max_stage(f),
             }
@@ -405,7 +464,11 @@ impl PlaceFailure {
     }
 
     fn max_stage(self, other: PlaceFailure) -> PlaceFailure {
-        if other.stage() > self.stage() { other } else { self }
+        if other.stage() > self.stage() {
+            other
+        } else {
+            self
+        }
     }
 }
 

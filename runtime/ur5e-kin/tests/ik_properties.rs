@@ -99,14 +99,18 @@ fn ik_on_reference_poses() {
             let (dp, dr) = pose_error(&arm.forward(s), &pose);
             assert!(dp < 1e-7 && dr < 1e-7, "{s:?}: {dp} m {dr} rad");
         }
-        assert!(solutions.iter().any(|s| same_angles(s, &q, 1e-6)), "{q:?} missing in {solutions:?}");
+        assert!(
+            solutions.iter().any(|s| same_angles(s, &q, 1e-6)),
+            "{q:?} missing in {solutions:?}"
+        );
     }
 }
 
 #[test]
 fn tool_down_pose_in_front_is_reachable_and_far_pose_is_not() {
     let arm = Ur5e::default();
-    let down = UnitQuaternion::from_rotation_matrix(&Rotation3::from_axis_angle(&Vector3::x_axis(), PI));
+    let down =
+        UnitQuaternion::from_rotation_matrix(&Rotation3::from_axis_angle(&Vector3::x_axis(), PI));
     let near = Isometry3::from_parts(Translation3::new(0.5, 0.0, 0.3), down);
     assert!(!arm.inverse(&near).is_empty());
     let far = Isometry3::from_parts(Translation3::new(1.2, 0.0, 0.3), down);

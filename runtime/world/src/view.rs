@@ -10,7 +10,7 @@
 //! Rendering is deterministic and cheap (about 30 us per crop): each cell averages 4 x 4
 //! sub-samples of the gray level of what lies there (floor, table top, chair, wall).
 
-use image::{Rgb, RgbImage};
+pub use image::{Rgb, RgbImage};
 
 use crate::geometry::OrientedRect;
 use crate::scene::{Scene, TABLE_CENTER_Y_M};

@@ -1,0 +1,337 @@
+//! Driver behaviour against a scripted base on the in-memory bus, on a simulated clock:
+//! start-up configuration, modes, limits and normalisation, the input watchdog, base silence,
+//! unreadable feedback and faults.
+
+use std::time::Duration;
+
+use can_bus::{CanBus, MemoryBus, MemoryBusNode};
+use motion_control::Twist;
+use rmp_base::{BaseError, BaseMode, CanLink, RmpBase, RmpBaseConfig, from_can, to_can};
+use rmp_codec::faults::{self, FaultStatus};
+use rmp_codec::feedback::{FeedbackBitmaps, FeedbackItem, FeedbackLayout, FeedbackSet};
+use rmp_codec::v3::{ConfigCommand, FirmwareProfile, HostCommand, ModeRequest, OperationalState};
+
+const PERIOD: Duration = Duration::from_millis(20);
+
+/// A base that answers every command with a set in `layout`, from scripted values.
+struct ScriptedBase {
+    node: MemoryBusNode,
+    state: OperationalState,
+    accepts_tractor: bool,
+    faults: FaultStatus,
+    velocity_limit_mps: f32,
+    answering: bool,
+    layout: FeedbackLayout,
+    /// Every motion command received (normalised velocity, yaw).
+    motions: Vec<(f32, f32)>,
+    configs: Vec<ConfigCommand>,
+}
+
+impl ScriptedBase {
+    fn new(bus: &MemoryBus) -> Self {
+        Self {
+            node: bus.join(),
+            state: OperationalState::Standby,
+            accepts_tractor: true,
+            faults: FaultStatus::CLEAR,
+            velocity_limit_mps: 2.0,
+            answering: true,
+            layout: FeedbackLayout::default(),
+            motions: Vec::new(),
+            configs: Vec::new(),
+        }
+    }
+
+    fn serve(&mut self) {
+        while let Some(frame) = self.node.try_recv().unwrap() {
+            let raw = from_can(&frame).unwrap();
+            match HostCommand::decode(FirmwareProfile::SegwayInc2014, &raw).unwrap() {
+                HostCommand::Motion(m) => self.motions.push((m.velocity(), m.yaw_rate())),
+                HostCommand::Config(c) => {
+                    if c == ConfigCommand::SetOperationalMode(ModeRequest::Tractor)
+                        && self.accepts_tractor
+                    {
+                        self.state = OperationalState::Tractor;
+                    }
+                    self.configs.push(c);
+                }
+            }
+            if !self.answering {
+                continue;
+            }
+            let set = FeedbackSet::from_fn(self.layout, |item| match item {
+                FeedbackItem::OperationalState => self.state.to_word(),
+                FeedbackItem::FaultStatusWord1 => self.faults.words()[0],
+                FeedbackItem::VelocityLimit => self.velocity_limit_mps.to_bits(),
+                FeedbackItem::YawRateLimit => 2.0f32.to_bits(),
+                _ => 0,
+            });
+            for f in set.frames() {
+                self.node.send(&to_can(&f)).unwrap();
+            }
+        }
+    }
+}
+
+struct Rig {
+    base: ScriptedBase,
+    driver: RmpBase<CanLink<MemoryBusNode>>,
+    now: Duration,
+}
+
+impl Rig {
+    fn new(config: RmpBaseConfig) -> Self {
+        let bus = MemoryBus::new();
+        let base = ScriptedBase::new(&bus);
+        let driver = RmpBase::new(CanLink::new(bus.join()), config).unwrap();
+        Self {
+            base,
+            driver,
+            now: Duration::ZERO,
+        }
+    }
+
+    fn tick(&mut self) -> Result<rmp_base::Tick, BaseError> {
+        let r = self.driver.tick(self.now);
+        self.base.serve();
+        self.now += PERIOD;
+        r
+    }
+
+    /// Ticks until the driver reports tractor.
+    fn enter_tractor(&mut self) {
+        self.driver.request_mode(BaseMode::Tractor, self.now);
+        for _ in 0..50 {
+            if self.tick().unwrap().mode_reached == Some(BaseMode::Tractor) {
+                assert!(self.driver.is_driving());
+                return;
+            }
+        }
+        panic!("tractor never confirmed");
+    }
+}
+
+#[test]
+fn start_up_writes_every_feedback_bitmap_then_commands_motion() {
+    let mut rig = Rig::new(RmpBaseConfig::default());
+    for _ in 0..6 {
+        rig.tick().unwrap();
+    }
+    let written: Vec<_> = rig.base.configs.clone();
+    let expected: Vec<_> = FeedbackBitmaps::DEFAULT
+        .words()
+        .iter()
+        .enumerate()
+        .map(|(i, b)| ConfigCommand::SetFeedbackBitmap {
+            index: i as u8,
+            bitmap: *b,
+        })
+        .collect();
+    assert_eq!(written, expected);
+    assert!(!rig.base.motions.is_empty(), "keep-alive motion after start-up");
+    assert!(rig.base.motions.iter().all(|m| *m == (0.0, 0.0)));
+    assert_eq!(rig.driver.status().state, Some(OperationalState::Standby));
+}
+
+#[test]
+fn velocity_is_limited_and_normalised_by_the_reported_limit() {
+    let mut rig = Rig::new(RmpBaseConfig::default());
+    rig.enter_tractor();
+    let mut last = 0.0;
+    for _ in 0..100 {
+        rig.driver.set_velocity(Twist::new(3.0, 0.0), rig.now);
+        let tick = rig.tick().unwrap();
+        assert!(!tick.input_stale);
+        // Accel limit 0.5 m/s^2 at 20 ms: at most 0.01 m/s more per tick.
+        assert!(tick.commanded.speed_mps - last <= 0.01 + 1e-6);
+        last = tick.commanded.speed_mps;
+    }
+    // Clamped to the driver's 0.5 m/s, sent as 0.5 / 2.0 (the base's reported limit).
+    assert_eq!(last, 0.5);
+    let (v, _) = *rig.base.motions.last().unwrap();
+    assert!((v - 0.25).abs() < 1e-6, "{v}");
+}
+
+#[test]
+fn stale_input_ramps_the_command_to_zero() {
+    let mut rig = Rig::new(RmpBaseConfig::default());
+    rig.enter_tractor();
+    for _ in 0..60 {
+        rig.driver.set_velocity(Twist::new(0.4, 0.5), rig.now);
+        rig.tick().unwrap();
+    }
+    let fed_at = rig.now - PERIOD;
+    let mut stale_seen_at = None;
+    for _ in 0..40 {
+        let t = rig.tick().unwrap();
+        if t.input_stale && stale_seen_at.is_none() {
+            stale_seen_at = Some(rig.now - PERIOD);
+        }
+    }
+    let stale_at = stale_seen_at.expect("the input watchdog fired");
+    // Default input timeout 100 ms: stale on the first tick more than 100 ms after the feed.
+    assert!(stale_at - fed_at > Duration::from_millis(100));
+    assert!(stale_at - fed_at <= Duration::from_millis(120));
+    // 0.4 m/s at 1 m/s^2 decel: zero within 0.4 s; the base receives zeros at the end.
+    assert_eq!(rig.base.motions.last(), Some(&(0.0, 0.0)));
+    // And the ramp was a ramp, not a jump: some command between 0 and 0.2 (0.4 / 2.0) was sent.
+    assert!(rig.base.motions.iter().any(|m| m.0 > 0.0 && m.0 < 0.19));
+}
+
+#[test]
+fn a_silent_base_is_an_error_and_gets_zero_commands() {
+    let mut rig = Rig::new(RmpBaseConfig::default());
+    rig.enter_tractor();
+    for _ in 0..30 {
+        rig.driver.set_velocity(Twist::new(0.4, 0.0), rig.now);
+        rig.tick().unwrap();
+    }
+    rig.base.answering = false;
+    let silent_since = rig.now;
+    let mut error_at = None;
+    for _ in 0..30 {
+        rig.driver.set_velocity(Twist::new(0.4, 0.0), rig.now);
+        match rig.tick() {
+            Ok(_) => {}
+            Err(BaseError::Silent {
+                silent_for,
+                timeout,
+            }) => {
+                assert!(silent_for > timeout);
+                error_at.get_or_insert(rig.now - PERIOD);
+            }
+            Err(other) => panic!("unexpected {other}"),
+        }
+    }
+    let error_at = error_at.expect("silence must be reported");
+    assert!(error_at - silent_since <= Duration::from_millis(300));
+    // Fresh inputs notwithstanding, the driver now sends zero.
+    assert_eq!(rig.base.motions.last(), Some(&(0.0, 0.0)));
+    // When the base answers again the driver recovers.
+    rig.base.answering = true;
+    rig.tick().ok();
+    rig.driver.set_velocity(Twist::new(0.4, 0.0), rig.now);
+    assert!(rig.tick().is_ok());
+}
+
+#[test]
+fn a_base_that_never_answers_is_reported() {
+    let mut rig = Rig::new(RmpBaseConfig {
+        assume_feedback_configured: true,
+        ..RmpBaseConfig::default()
+    });
+    rig.base.answering = false;
+    let errors: Vec<_> = (0..20).map(|_| rig.tick()).collect();
+    assert!(errors[..12].iter().all(|r| r.is_ok()));
+    let last = errors.last().unwrap();
+    assert!(
+        matches!(last, Err(BaseError::Silent { .. })),
+        "{last:?}"
+    );
+    assert!(last.as_ref().unwrap_err().to_string().contains("not answering"));
+}
+
+#[test]
+fn a_mode_the_base_refuses_times_out() {
+    let mut rig = Rig::new(RmpBaseConfig::default());
+    rig.base.accepts_tractor = false;
+    rig.tick().unwrap();
+    rig.driver.request_mode(BaseMode::Tractor, rig.now);
+    let mut timed_out = false;
+    for _ in 0..150 {
+        rig.driver.set_velocity(Twist::new(0.4, 0.0), rig.now);
+        match rig.tick() {
+            Ok(t) => assert_eq!(t.commanded, Twist::ZERO, "no motion outside tractor"),
+            Err(BaseError::ModeTimeout {
+                wanted, reported, ..
+            }) => {
+                assert_eq!(wanted, BaseMode::Tractor);
+                assert_eq!(reported, Some(OperationalState::Standby));
+                timed_out = true;
+                break;
+            }
+            Err(e) => panic!("{e}"),
+        }
+    }
+    assert!(timed_out);
+    let requests = rig
+        .base
+        .configs
+        .iter()
+        .filter(|c| **c == ConfigCommand::SetOperationalMode(ModeRequest::Tractor))
+        .count();
+    // Resent every 100 ms for 2 s.
+    assert!((19..=22).contains(&requests), "{requests}");
+}
+
+#[test]
+fn feedback_in_another_layout_is_reported_as_unreadable() {
+    let mut rig = Rig::new(RmpBaseConfig::default());
+    rig.base.layout = FeedbackLayout::User(FeedbackBitmaps::from_items(&[
+        FeedbackItem::OperationalState,
+    ]));
+    let mut got = None;
+    for _ in 0..30 {
+        if let Err(e) = rig.tick() {
+            got = Some(e);
+        }
+    }
+    match got {
+        Some(BaseError::FeedbackUnreadable {
+            expected_frames, ..
+        }) => assert_eq!(expected_frames, 48),
+        other => panic!("{other:?}"),
+    }
+    assert!(rig.driver.status().feedback_errors > 0);
+}
+
+#[test]
+fn a_faulted_base_gets_zero_and_the_fault_is_named() {
+    let mut rig = Rig::new(RmpBaseConfig::default());
+    rig.enter_tractor();
+    for _ in 0..30 {
+        rig.driver.set_velocity(Twist::new(0.4, 0.0), rig.now);
+        rig.tick().unwrap();
+    }
+    rig.base.faults.set(faults::KILL_SWITCH_ACTIVE);
+    let mut message = String::new();
+    for _ in 0..5 {
+        rig.driver.set_velocity(Twist::new(0.4, 0.0), rig.now);
+        if let Err(e) = rig.tick() {
+            assert!(matches!(e, BaseError::Faulted { .. }));
+            message = e.to_string();
+        }
+    }
+    assert!(message.contains("kill switch active"), "{message}");
+    assert_eq!(rig.base.motions.last(), Some(&(0.0, 0.0)));
+}
+
+#[test]
+fn bad_configurations_are_refused_with_the_field_named() {
+    let bus = MemoryBus::new();
+    let bad_sign = RmpBaseConfig {
+        yaw_sign: 0.5,
+        ..RmpBaseConfig::default()
+    };
+    assert!(RmpBase::new(CanLink::new(bus.join()), bad_sign).is_err());
+    let no_state = RmpBaseConfig {
+        feedback: FeedbackBitmaps::from_items(&[FeedbackItem::LinearVelocity]),
+        ..RmpBaseConfig::default()
+    };
+    let err = RmpBase::new(CanLink::new(bus.join()), no_state)
+        .err()
+        .unwrap();
+    assert!(err.to_string().contains("OperationalState"), "{err}");
+    let zero = RmpBaseConfig {
+        input_timeout: Duration::ZERO,
+        ..RmpBaseConfig::default()
+    };
+    let err = RmpBase::new(CanLink::new(bus.join()), zero).err().unwrap();
+    assert!(err.to_string().contains("input_timeout"));
+    let older = RmpBaseConfig {
+        profile: FirmwareProfile::Older440,
+        feedback: FeedbackBitmaps::new([u32::MAX, 0, 0, 0]).unwrap(),
+        ..RmpBaseConfig::default()
+    };
+    assert!(RmpBase::new(CanLink::new(bus.join()), older).is_ok());
+}

@@ -1,0 +1,240 @@
+//! Quality of a predicted heatmap against a ground-truth heatmap, over the labelled (candidate)
+//! cells only: cell-level MAE, Brier score and calibration (ECE), task-level feasibility error
+//! |F_hat - F| (paper eq. 4) and the expected success of the navigation goal Smp draws.
+
+use serde::{Deserialize, Serialize};
+use world::Heatmap;
+use world::view::{CROP_COLS, candidate_cells};
+
+/// Bins of the expected calibration error (equal width over [0, 1]).
+pub const ECE_BINS: usize = 10;
+
+/// Task-level feasibility of one location in closed form (paper eq. 4): the expected heatmap
+/// value at a cell drawn by Smp (probability proportional to the value), sum(v^2) / sum(v) over
+/// the candidate cells; 0 when the heatmap is 0 everywhere (nothing to draw, nothing feasible).
+pub fn task_feasibility(heat: &Heatmap) -> f64 {
+    let (mut s1, mut s2) = (0.0f64, 0.0f64);
+    for (r, c) in candidate_cells() {
+        let v = f64::from(heat.values()[r * CROP_COLS + c]).max(0.0);
+        s1 += v;
+        s2 += v * v;
+    }
+    if s1 > 0.0 { s2 / s1 } else { 0.0 }
+}
+
+/// True success probability of the goal Smp draws from `predicted` (paper Alg. 1 line 10):
+/// sum(p * y) / sum(p) over candidate cells, where y is the true success fraction; 0 when the
+/// prediction is 0 everywhere (the planner has no goal to send the robot to).
+pub fn smp_expected_success(predicted: &Heatmap, truth: &Heatmap) -> f64 {
+    let (mut sp, mut spy) = (0.0f64, 0.0f64);
+    for (r, c) in candidate_cells() {
+        let i = r * CROP_COLS + c;
+        let p = f64::from(predicted.values()[i]).max(0.0);
+        sp += p;
+        spy += p * f64::from(truth.values()[i]);
+    }
+    if sp > 0.0 { spy / sp } else { 0.0 }
+}
+
+/// Running sums over many (prediction, truth) pairs; [`MetricsAccumulator::report`] gives the
+/// averages.
+#[derive(Clone, Debug, Default)]
+pub struct MetricsAccumulator {
+    cells: u64,
+    abs_err: f64,
+    brier: f64,
+    bin_count: [u64; ECE_BINS],
+    bin_pred: [f64; ECE_BINS],
+    bin_true: [f64; ECE_BINS],
+    tasks: u64,
+    f_abs_err: f64,
+    f_pred: f64,
+    f_true: f64,
+    smp_success: f64,
+}
+
+impl MetricsAccumulator {
+    /// Adds one task's heatmaps (prediction and ground truth, same layout).
+    pub fn add(&mut self, predicted: &Heatmap, truth: &Heatmap) {
+        for (r, c) in candidate_cells() {
+            let i = r * CROP_COLS + c;
+            let p = f64::from(predicted.values()[i]).clamp(0.0, 1.0);
+            let y = f64::from(truth.values()[i]);
+            self.cells += 1;
+            self.abs_err += (p - y).abs();
+            // Brier score on the individual trials behind y: mean over trials of (p - o)^2 with
+            // a fraction y of outcomes 1, = (p - y)^2 + y (1 - y).
+            self.brier += (p - y) * (p - y) + y * (1.0 - y);
+            let bin = ((p * ECE_BINS as f64) as usize).min(ECE_BINS - 1);
+            self.bin_count[bin] += 1;
+            self.bin_pred[bin] += p;
+            self.bin_true[bin] += y;
+        }
+        let f_pred = task_feasibility(predicted);
+        let f_true = task_feasibility(truth);
+        self.tasks += 1;
+        self.f_abs_err += (f_pred - f_true).abs();
+        self.f_pred += f_pred;
+        self.f_true += f_true;
+        self.smp_success += smp_expected_success(predicted, truth);
+    }
+
+    /// Averages so far (all zero before the first task).
+    pub fn report(&self, evaluator: &str) -> QualityReport {
+        let n = self.cells.max(1) as f64;
+        let t = self.tasks.max(1) as f64;
+        let ece = (0..ECE_BINS)
+            .filter(|&b| self.bin_count[b] > 0)
+            .map(|b| (self.bin_pred[b] - self.bin_true[b]).abs() / n)
+            .sum();
+        QualityReport {
+            evaluator: evaluator.to_owned(),
+            tasks: self.tasks,
+            cells: self.cells,
+            mae: self.abs_err / n,
+            brier: self.brier / n,
+            ece,
+            f_abs_err: self.f_abs_err / t,
+            f_mean_pred: self.f_pred / t,
+            f_mean_true: self.f_true / t,
+            smp_success: self.smp_success / t,
+            smp_success_true: self.f_true / t,
+        }
+    }
+}
+
+/// Averages over the tasks and labelled cells of an evaluation set.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct QualityReport {
+    /// Which evaluator.
+    pub evaluator: String,
+    /// (target, side) pairs evaluated.
+    pub tasks: u64,
+    /// Labelled cells evaluated (tasks x 192).
+    pub cells: u64,
+    /// Mean |p - y| over cells (y = true success fraction).
+    pub mae: f64,
+    /// Brier score over the individual trials, (p - y)^2 + y (1 - y) averaged over cells; its
+    /// floor, reached by a perfect predictor, is the mean of y (1 - y).
+    pub brier: f64,
+    /// Expected calibration error, 10 equal-width bins of p, weighted by cells.
+    pub ece: f64,
+    /// Mean over tasks of |F(p) - F(y)| with F of paper eq. 4 (closed form).
+    pub f_abs_err: f64,
+    /// Mean F(p).
+    pub f_mean_pred: f64,
+    /// Mean F(y).
+    pub f_mean_true: f64,
+    /// Mean true success probability of the goal Smp draws from the prediction.
+    pub smp_success: f64,
+    /// The same for goals drawn from the true heatmap (= mean F(y)): the best Smp can do.
+    pub smp_success_true: f64,
+}
+
+impl QualityReport {
+    /// `| name | MAE | Brier | ECE | |F_hat-F| | Smp success |` markdown row.
+    pub fn markdown_row(&self) -> String {
+        format!(
+            "| {} | {:.4} | {:.4} | {:.4} | {:.4} | {:.3} (true heatmap: {:.3}) |",
+            self.evaluator, self.mae, self.brier, self.ece, self.f_abs_err, self.smp_success, self.smp_success_true
+        )
+    }
+
+    /// Header of [`QualityReport::markdown_row`].
+    pub fn markdown_header() -> &'static str {
+        "| evaluator | MAE | Brier | ECE | |F_hat - F| | expected success of Smp goal |\n|---|---|---|---|---|---|"
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use world::view::{CANDIDATE_COLS, CANDIDATE_ROWS};
+
+    fn uniform(v: f32) -> Heatmap {
+        let mut h = Heatmap::zeros();
+        for (r, c) in candidate_cells() {
+            h.set(r, c, v);
+        }
+        h
+    }
+
+    #[test]
+    fn perfect_prediction_has_zero_error_and_brier_floor() {
+        let mut truth = Heatmap::zeros();
+        for (k, (r, c)) in candidate_cells().enumerate() {
+            truth.set(r, c, (k % 5) as f32 / 4.0);
+        }
+        let mut acc = MetricsAccumulator::default();
+        acc.add(&truth, &truth);
+        let rep = acc.report("truth");
+        assert_eq!(rep.cells, 192);
+        assert!(rep.mae < 1e-12 && rep.ece < 1e-12 && rep.f_abs_err < 1e-12);
+        let floor: f64 = candidate_cells()
+            .map(|(r, c)| {
+                let y = f64::from(truth.get(r, c));
+                y * (1.0 - y)
+            })
+            .sum::<f64>()
+            / 192.0;
+        assert!((rep.brier - floor).abs() < 1e-12);
+        assert!((rep.smp_success - rep.smp_success_true).abs() < 1e-12);
+    }
+
+    #[test]
+    fn constant_prediction_numbers_by_hand() {
+        // Truth: half the cells 1, half 0. Prediction: 0.5 everywhere.
+        let mut truth = Heatmap::zeros();
+        for (k, (r, c)) in candidate_cells().enumerate() {
+            truth.set(r, c, (k % 2) as f32);
+        }
+        let mut acc = MetricsAccumulator::default();
+        acc.add(&uniform(0.5), &truth);
+        let rep = acc.report("half");
+        assert!((rep.mae - 0.5).abs() < 1e-12);
+        assert!((rep.brier - 0.25).abs() < 1e-12);
+        // One bin, mean p 0.5, mean y 0.5: calibrated.
+        assert!(rep.ece.abs() < 1e-12);
+        // F(p) = 0.5, F(y) = 1 (Smp on the truth only draws 1-cells).
+        assert!((rep.f_mean_pred - 0.5).abs() < 1e-12 && (rep.f_mean_true - 1.0).abs() < 1e-12);
+        assert!((rep.f_abs_err - 0.5).abs() < 1e-12);
+        // A uniform draw succeeds half the time.
+        assert!((rep.smp_success - 0.5).abs() < 1e-12);
+    }
+
+    #[test]
+    fn overconfident_prediction_is_miscalibrated() {
+        let mut acc = MetricsAccumulator::default();
+        acc.add(&uniform(0.95), &uniform(0.5));
+        let rep = acc.report("over");
+        assert!((rep.ece - 0.45).abs() < 1e-6, "{}", rep.ece);
+    }
+
+    #[test]
+    fn cells_outside_the_candidate_area_do_not_count() {
+        let mut pred = uniform(0.3);
+        pred.set(0, 0, 1.0);
+        pred.set(*CANDIDATE_ROWS.end() + 1, *CANDIDATE_COLS.start(), 1.0);
+        let mut acc = MetricsAccumulator::default();
+        acc.add(&pred, &uniform(0.3));
+        assert!(acc.report("x").mae < 1e-7);
+    }
+
+    #[test]
+    fn empty_heatmaps_give_zero_feasibility() {
+        assert_eq!(task_feasibility(&Heatmap::zeros()), 0.0);
+        assert_eq!(smp_expected_success(&Heatmap::zeros(), &uniform(1.0)), 0.0);
+    }
+
+    #[test]
+    fn smp_success_weights_by_prediction() {
+        // Prediction puts all mass on the one true 1-cell.
+        let mut truth = Heatmap::zeros();
+        truth.set(10, 30, 1.0);
+        let mut pred = Heatmap::zeros();
+        pred.set(10, 30, 0.2);
+        assert!((smp_expected_success(&pred, &truth) - 1.0).abs() < 1e-12);
+        pred.set(10, 31, 0.2);
+        assert!((smp_expected_success(&pred, &truth) - 0.5).abs() < 1e-12);
+    }
+}

@@ -1,0 +1,171 @@
+//! The real driver against the simulated base on the in-memory bus, on a simulated clock:
+//! deterministic, no sleeping. Odometry against ground truth, the base's own loss-of-command
+//! ramp when the host dies, faults, the yaw sign, and determinism.
+
+use std::time::Duration;
+
+use can_bus::{MemoryBus, MemoryBusNode};
+use motion_control::Twist;
+use rmp_base::{BaseError, BaseMode, CanLink, Odometry, RmpBase, RmpBaseConfig};
+use rmp_codec::faults;
+use rmp_codec::v3::OperationalState;
+use sim_rmp::{SimConfig, SimPose, SimRmp, SimRmpNode};
+
+const PERIOD: Duration = Duration::from_millis(20);
+
+struct Rig {
+    sim: SimRmpNode<MemoryBusNode>,
+    driver: RmpBase<CanLink<MemoryBusNode>>,
+    now: Duration,
+}
+
+impl Rig {
+    fn new(yaw_sign: f64) -> Self {
+        let bus = MemoryBus::new();
+        let sim = SimRmpNode::new(
+            bus.join(),
+            SimRmp::new(SimConfig {
+                yaw_sign,
+                ..SimConfig::default()
+            }),
+        );
+        let driver = RmpBase::new(
+            CanLink::new(bus.join()),
+            RmpBaseConfig {
+                yaw_sign,
+                ..RmpBaseConfig::default()
+            },
+        )
+        .unwrap();
+        Self {
+            sim,
+            driver,
+            now: Duration::ZERO,
+        }
+    }
+
+    /// One 20 ms period: the driver ticks, the base answers (and moves) up to the next tick.
+    fn step(&mut self) -> Result<rmp_base::Tick, BaseError> {
+        let r = self.driver.tick(self.now);
+        // The base answers 1 ms after the command, as on a real bus.
+        self.sim.poll(self.now + Duration::from_millis(1)).unwrap();
+        self.now += PERIOD;
+        self.sim.poll(self.now).unwrap();
+        r
+    }
+
+    fn drive(&mut self, twist: Twist, duration: Duration) {
+        let end = self.now + duration;
+        while self.now < end {
+            self.driver.set_velocity(twist, self.now);
+            self.step().unwrap();
+        }
+    }
+
+    fn enter_tractor(&mut self) {
+        self.driver.request_mode(BaseMode::Tractor, self.now);
+        for _ in 0..100 {
+            if self.step().unwrap().mode_reached == Some(BaseMode::Tractor) {
+                return;
+            }
+        }
+        panic!("no tractor");
+    }
+}
+
+fn mission(yaw_sign: f64) -> (Odometry, SimPose) {
+    let mut rig = Rig::new(yaw_sign);
+    rig.enter_tractor();
+    assert_eq!(rig.sim.sim().state(), OperationalState::Tractor);
+    rig.drive(Twist::new(0.4, 0.0), Duration::from_secs(2));
+    rig.drive(Twist::new(0.0, 0.8), Duration::from_secs(2));
+    rig.drive(Twist::new(0.3, 0.3), Duration::from_secs(2));
+    // Let the watchdog and the limiter bring it to rest, then one more reply.
+    for _ in 0..60 {
+        rig.step().unwrap();
+    }
+    (*rig.driver.odometry(), rig.sim.sim().pose())
+}
+
+#[test]
+fn odometry_tracks_ground_truth_through_a_mission() {
+    let (odo, truth) = mission(1.0);
+    assert!(truth.x_m.hypot(truth.y_m) > 0.6, "the base moved: {truth:?}");
+    assert!(truth.yaw_rad > 1.0, "counter-clockwise turn: {truth:?}");
+    // Odometry differences float32 integrators, so millimetres.
+    assert!((odo.x_m - truth.x_m).abs() < 0.005, "{odo:?} vs {truth:?}");
+    assert!((odo.y_m - truth.y_m).abs() < 0.005, "{odo:?} vs {truth:?}");
+    assert!((odo.yaw_rad - truth.yaw_rad).abs() < 0.005, "{odo:?} vs {truth:?}");
+    assert_eq!(odo.speed_mps, 0.0);
+}
+
+#[test]
+fn a_clockwise_positive_base_still_turns_the_way_the_caller_asked() {
+    let (odo, truth) = mission(-1.0);
+    assert!(truth.yaw_rad > 1.0, "counter-clockwise in the world: {truth:?}");
+    assert!((odo.yaw_rad - truth.yaw_rad).abs() < 0.005);
+}
+
+#[test]
+fn the_same_mission_twice_gives_bit_identical_results() {
+    let a = mission(1.0);
+    let b = mission(1.0);
+    assert_eq!(format!("{a:?}"), format!("{b:?}"));
+}
+
+#[test]
+fn when_the_host_dies_the_base_holds_then_ramps_to_zero_at_its_decel_limit() {
+    let mut rig = Rig::new(1.0);
+    rig.enter_tractor();
+    rig.drive(Twist::new(0.5, 0.0), Duration::from_secs(2));
+    let cruise = rig.sim.sim().velocity().0;
+    assert!((cruise - 0.5).abs() < 1e-3);
+    // The host process is gone: no more ticks. Only the base's clock runs.
+    let died = rig.now;
+    rig.sim.poll(died + Duration::from_millis(480)).unwrap();
+    assert_eq!(rig.sim.sim().velocity().0, cruise, "held for 0.5 s");
+    rig.sim.poll(died + Duration::from_millis(560)).unwrap();
+    let v = rig.sim.sim().velocity().0;
+    assert!(v < cruise && v > 0.0, "ramping, not a jump: {v}");
+    // 0.5 m/s at 3.923 m/s^2: at rest 0.13 s after the timeout.
+    rig.sim.poll(died + Duration::from_millis(700)).unwrap();
+    assert_eq!(rig.sim.sim().velocity().0, 0.0);
+}
+
+#[test]
+fn an_injected_kill_switch_stops_the_base_and_the_driver_names_it() {
+    let mut rig = Rig::new(1.0);
+    rig.enter_tractor();
+    rig.drive(Twist::new(0.4, 0.0), Duration::from_secs(1));
+    rig.sim.sim_mut().set_fault(faults::KILL_SWITCH_ACTIVE, true);
+    let mut named = false;
+    for _ in 0..50 {
+        rig.driver.set_velocity(Twist::new(0.4, 0.0), rig.now);
+        if let Err(BaseError::Faulted { faults }) = rig.step() {
+            named |= faults.has(faults::KILL_SWITCH_ACTIVE);
+        }
+    }
+    assert!(named);
+    assert_eq!(rig.sim.sim().velocity().0, 0.0);
+    assert!(!rig.driver.is_driving() || rig.driver.status().faults.stops_motion());
+}
+
+#[test]
+fn a_silenced_base_is_reported_and_recovers() {
+    let mut rig = Rig::new(1.0);
+    rig.enter_tractor();
+    rig.drive(Twist::new(0.3, 0.0), Duration::from_millis(500));
+    rig.sim.sim_mut().set_silent(true);
+    let mut silent_errors = 0;
+    for _ in 0..30 {
+        rig.driver.set_velocity(Twist::new(0.3, 0.0), rig.now);
+        if let Err(BaseError::Silent { .. }) = rig.step() {
+            silent_errors += 1;
+        }
+    }
+    assert!(silent_errors >= 15, "{silent_errors}");
+    rig.sim.sim_mut().set_silent(false);
+    rig.step().ok();
+    rig.drive(Twist::new(0.3, 0.0), Duration::from_millis(500));
+    assert!(rig.sim.sim().velocity().0 > 0.1);
+}

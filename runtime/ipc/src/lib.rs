@@ -1,0 +1,137 @@
+//! The runtime's iceoryx2 services, typed: overhead camera frames, GROP plans, base and arm
+//! state, events. Every message is a `#[repr(C)]` plain-data type that travels zero-copy through
+//! shared memory; every service name starts with a namespace, so that a robot, a HIL run and
+//! each test live side by side without seeing each other.
+//!
+//! | topic | message | history for late joiners |
+//! |---|---|---|
+//! | `<ns>/camera/overhead` | [`OverheadFrame`] (512 x 512 px max + header) | newest frame |
+//! | `<ns>/plan` | [`PlanMsg`] | newest plan |
+//! | `<ns>/base/state` | [`BaseStateMsg`] | newest state |
+//! | `<ns>/arm/state` | [`ArmStateMsg`] | newest state |
+//! | `<ns>/events` | [`EventMsg`] | none |
+//!
+//! ```no_run
+//! use std::time::Duration;
+//! use grop_ipc::{BaseStateMsg, IpcNode};
+//!
+//! let node = IpcNode::new("robot", "base-driver")?;
+//! let publisher = node.publisher::<BaseStateMsg>()?;
+//! publisher.publish_with(|state| {
+//!     state.seq = 1;
+//!     state.speed_mps = 0.4;
+//! })?;
+//!
+//! let executive = IpcNode::new("robot", "executive")?;
+//! let subscriber = executive.subscriber::<BaseStateMsg>()?;
+//! if let Some(state) = subscriber.recv_timeout(Duration::from_millis(20))? {
+//!     println!("base at {} m/s", state.speed_mps);
+//! }
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
+//!
+//! A subscriber wakes on its topic's event service (`<ns>/<topic>/wake`), so `recv_timeout`
+//! sleeps instead of polling. Staleness is the reader's decision: every message carries
+//! `stamp_ns` from the runtime clock, and [`Received::age_ns`] / [`Received::is_stale`] compare
+//! it with the reader's now.
+
+mod messages;
+mod port;
+
+pub use messages::{
+    ArmSafety, ArmStateMsg, BaseMode, BaseStateMsg, EVENT_DETAIL_CAPACITY, EventKind, EventMsg,
+    MAX_PLAN_STEPS, MessageError, OVERHEAD_MAX_HEIGHT_PX, OVERHEAD_MAX_PIXELS,
+    OVERHEAD_MAX_WIDTH_PX, OverheadFrame, OverheadFrameHeader, PlanMsg, PlanStep, TableSide,
+};
+pub use port::{
+    IpcNode, NodeError, PortError, PublishError, ReceiveError, Received, TopicPublisher,
+    TopicSubscriber,
+};
+
+/// A message type with its service: name and queue sizes. Implemented for the message types of
+/// this crate only (sealed), each of which is plain data for which all-zero bytes are a valid
+/// value; [`TopicPublisher::publish_with`] relies on that.
+pub trait Topic:
+    sealed::Sealed + iceoryx2::prelude::ZeroCopySend + core::fmt::Debug + 'static
+{
+    /// Service name below the namespace, e.g. `camera/overhead`.
+    const NAME: &'static str;
+    /// How many of the newest messages a subscriber that joins late receives at once.
+    const HISTORY: usize;
+    /// Messages a subscriber buffers before the oldest are overwritten.
+    const BUFFER: usize;
+    /// Most subscribers (bounds the shared memory a publisher reserves).
+    const MAX_SUBSCRIBERS: usize;
+    /// Most publishers (several for events; one per device for states).
+    const MAX_PUBLISHERS: usize;
+    /// Timestamp of a message, runtime clock, nanoseconds.
+    fn stamp_ns(&self) -> u64;
+}
+
+mod sealed {
+    pub trait Sealed {}
+    impl Sealed for super::OverheadFrame {}
+    impl Sealed for super::PlanMsg {}
+    impl Sealed for super::BaseStateMsg {}
+    impl Sealed for super::ArmStateMsg {}
+    impl Sealed for super::EventMsg {}
+}
+
+impl Topic for OverheadFrame {
+    const NAME: &'static str = "camera/overhead";
+    const HISTORY: usize = 1;
+    // Frames are 256 KiB: keep few per subscriber; the planner wants the newest anyway.
+    const BUFFER: usize = 2;
+    const MAX_SUBSCRIBERS: usize = 4;
+    const MAX_PUBLISHERS: usize = 2;
+    fn stamp_ns(&self) -> u64 {
+        self.header.stamp_ns
+    }
+}
+
+impl Topic for PlanMsg {
+    const NAME: &'static str = "plan";
+    const HISTORY: usize = 1;
+    const BUFFER: usize = 4;
+    const MAX_SUBSCRIBERS: usize = 8;
+    const MAX_PUBLISHERS: usize = 2;
+    fn stamp_ns(&self) -> u64 {
+        self.stamp_ns
+    }
+}
+
+impl Topic for BaseStateMsg {
+    const NAME: &'static str = "base/state";
+    const HISTORY: usize = 1;
+    // 50 Hz for over a second, for a reader that logs every state.
+    const BUFFER: usize = 64;
+    const MAX_SUBSCRIBERS: usize = 8;
+    const MAX_PUBLISHERS: usize = 2;
+    fn stamp_ns(&self) -> u64 {
+        self.stamp_ns
+    }
+}
+
+impl Topic for ArmStateMsg {
+    const NAME: &'static str = "arm/state";
+    const HISTORY: usize = 1;
+    // RTDE runs at 500 Hz.
+    const BUFFER: usize = 256;
+    const MAX_SUBSCRIBERS: usize = 8;
+    const MAX_PUBLISHERS: usize = 2;
+    fn stamp_ns(&self) -> u64 {
+        self.stamp_ns
+    }
+}
+
+impl Topic for EventMsg {
+    const NAME: &'static str = "events";
+    // Events are things that happen now; a late joiner should not act on old ones.
+    const HISTORY: usize = 0;
+    const BUFFER: usize = 64;
+    const MAX_SUBSCRIBERS: usize = 8;
+    const MAX_PUBLISHERS: usize = 8;
+    fn stamp_ns(&self) -> u64 {
+        self.stamp_ns
+    }
+}

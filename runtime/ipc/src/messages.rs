@@ -1,0 +1,578 @@
+//! The message types of the runtime's services: `#[repr(C)]`, plain data, zero-copy.
+//!
+//! Shared memory is written by other processes, so nothing here is trusted: enums travel as
+//! integers and counts/lengths are checked by the accessors, which return [`MessageError`].
+//! All-zero bytes are a valid value of every type (the publisher starts every loan from zeros).
+
+use core::fmt;
+
+use iceoryx2::prelude::ZeroCopySend;
+
+/// Why a received message does not make sense.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, thiserror::Error)]
+#[non_exhaustive]
+pub enum MessageError {
+    /// An enum field holds a value no variant has.
+    #[error("{message}.{field} holds {value}, which is not a known value")]
+    UnknownEnumValue {
+        /// Message type.
+        message: &'static str,
+        /// Field name.
+        field: &'static str,
+        /// The raw value.
+        value: u32,
+    },
+    /// A count or length field exceeds the capacity of its array.
+    #[error("{message}.{field} is {count}, above the capacity {capacity}")]
+    CountTooLarge {
+        /// Message type.
+        message: &'static str,
+        /// Field name.
+        field: &'static str,
+        /// The count found.
+        count: u64,
+        /// The array's capacity.
+        capacity: u64,
+    },
+    /// An image's width or height is zero, or `width * height` exceeds the pixel buffer.
+    #[error(
+        "overhead frame of {width_px} x {height_px} px does not fit the {max_width_px} x {max_height_px} px buffer (or is empty)"
+    )]
+    BadImageSize {
+        /// Width found.
+        width_px: u32,
+        /// Height found.
+        height_px: u32,
+        /// Largest width.
+        max_width_px: u32,
+        /// Largest height.
+        max_height_px: u32,
+    },
+    /// The text of an event is not UTF-8.
+    #[error("event detail text is not UTF-8")]
+    DetailNotUtf8,
+}
+
+// ---------------------------------------------------------------------------------------------
+// camera/overhead
+
+/// Widest overhead image the frame buffer holds.
+pub const OVERHEAD_MAX_WIDTH_PX: u32 = 512;
+/// Tallest overhead image the frame buffer holds.
+pub const OVERHEAD_MAX_HEIGHT_PX: u32 = 512;
+/// Pixel capacity: a 512 x 512 px image is a 32 m x 32 m room at 6.25 cm per pixel, or one
+/// 64 x 64 px target view.
+pub const OVERHEAD_MAX_PIXELS: usize = (OVERHEAD_MAX_WIDTH_PX * OVERHEAD_MAX_HEIGHT_PX) as usize;
+
+/// Where an overhead image sits in the world frame (docs/architecture.md conventions: rows
+/// top-to-bottom = decreasing y, columns left-to-right = increasing x).
+#[derive(Clone, Copy, Debug, PartialEq, ZeroCopySend)]
+#[repr(C)]
+#[type_name("grop_ipc::OverheadFrameHeader/v1")]
+pub struct OverheadFrameHeader {
+    /// Camera frame counter, increasing.
+    pub frame_id: u64,
+    /// Capture time on the runtime clock, nanoseconds.
+    pub stamp_ns: u64,
+    /// Image width, pixels.
+    pub width_px: u32,
+    /// Image height, pixels.
+    pub height_px: u32,
+    /// Edge length of one pixel, metres (0.0625 for the paper's camera).
+    pub metres_per_px: f64,
+    /// World x of the left edge of column 0, metres.
+    pub left_x_m: f64,
+    /// World y of the top edge of row 0, metres.
+    pub top_y_m: f64,
+}
+
+/// One grayscale overhead image (`camera/overhead`), fixed size so it travels zero-copy.
+#[derive(Clone, ZeroCopySend)]
+#[repr(C)]
+#[type_name("grop_ipc::OverheadFrame/v1")]
+pub struct OverheadFrame {
+    /// Frame id, time and geometry.
+    pub header: OverheadFrameHeader,
+    /// Row-major grayscale pixels; only the first `width_px * height_px` are meaningful.
+    pub pixels: [u8; OVERHEAD_MAX_PIXELS],
+}
+
+impl OverheadFrame {
+    /// The image's pixels, row-major, after checking the size fields.
+    pub fn image(&self) -> Result<&[u8], MessageError> {
+        let count = checked_pixel_count(self.header.width_px, self.header.height_px)?;
+        Ok(&self.pixels[..count])
+    }
+
+    /// Sets the header and copies `pixels` (row-major, `width_px * height_px` of them) in.
+    pub fn set_image(
+        &mut self,
+        header: OverheadFrameHeader,
+        pixels: &[u8],
+    ) -> Result<(), MessageError> {
+        let count = checked_pixel_count(header.width_px, header.height_px)?;
+        if pixels.len() != count {
+            return Err(MessageError::CountTooLarge {
+                message: "OverheadFrame",
+                field: "pixels (must equal width_px * height_px)",
+                count: pixels.len() as u64,
+                capacity: count as u64,
+            });
+        }
+        self.header = header;
+        self.pixels[..count].copy_from_slice(pixels);
+        Ok(())
+    }
+}
+
+fn checked_pixel_count(width_px: u32, height_px: u32) -> Result<usize, MessageError> {
+    let fits = width_px > 0
+        && height_px > 0
+        && width_px <= OVERHEAD_MAX_WIDTH_PX
+        && height_px <= OVERHEAD_MAX_HEIGHT_PX;
+    if fits {
+        Ok((width_px * height_px) as usize)
+    } else {
+        Err(MessageError::BadImageSize {
+            width_px,
+            height_px,
+            max_width_px: OVERHEAD_MAX_WIDTH_PX,
+            max_height_px: OVERHEAD_MAX_HEIGHT_PX,
+        })
+    }
+}
+
+impl fmt::Debug for OverheadFrame {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_struct("OverheadFrame")
+            .field("header", &self.header)
+            .finish_non_exhaustive()
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// plan
+
+/// Most unload steps one plan message carries.
+pub const MAX_PLAN_STEPS: usize = 16;
+
+/// Which side of the banquet table the robot unloads from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TableSide {
+    /// y < 6 m, facing +y.
+    Near,
+    /// y > 6 m, facing -y.
+    Far,
+}
+
+impl TableSide {
+    fn to_wire(self) -> i32 {
+        match self {
+            Self::Near => 1,
+            Self::Far => -1,
+        }
+    }
+}
+
+/// One step of a task plan: drive to a navigation goal, unload one object there.
+#[derive(Clone, Copy, Debug, PartialEq, ZeroCopySend)]
+#[repr(C)]
+#[type_name("grop_ipc::PlanStep/v1")]
+pub struct PlanStep {
+    /// Index of the object in the task.
+    pub object_index: u32,
+    /// +1 near side, -1 far side (the dataset's convention); read with [`PlanStep::side`].
+    pub side: i32,
+    /// Object goal on the table, world frame, metres.
+    pub target_m: [f64; 3],
+    /// Navigation goal of the base (drawn by Smp), world x, metres.
+    pub goal_x_m: f64,
+    /// Navigation goal, world y, metres.
+    pub goal_y_m: f64,
+    /// Base heading at the goal, radians (facing the table).
+    pub goal_yaw_rad: f64,
+    /// Feasibility F of this (target, side) pair, 0..=1 (eq. 4, closed form).
+    pub feasibility: f64,
+    /// Travel time from the previous location to the goal, seconds.
+    pub travel_cost_s: f64,
+}
+
+impl PlanStep {
+    /// A step with the given side (sets the wire value).
+    pub fn with_side(mut self, side: TableSide) -> Self {
+        self.side = side.to_wire();
+        self
+    }
+
+    /// The table side, checked.
+    pub fn side(&self) -> Result<TableSide, MessageError> {
+        match self.side {
+            1 => Ok(TableSide::Near),
+            -1 => Ok(TableSide::Far),
+            other => Err(MessageError::UnknownEnumValue {
+                message: "PlanStep",
+                field: "side",
+                value: other as u32,
+            }),
+        }
+    }
+}
+
+/// The plan chosen by GROP (`plan`): the argmax of U(p) = R * F(p) - C(p) (paper eq. 1,
+/// `eqn:utility`) with its steps in execution order.
+#[derive(Clone, Copy, Debug, PartialEq, ZeroCopySend)]
+#[repr(C)]
+#[type_name("grop_ipc::PlanMsg/v1")]
+pub struct PlanMsg {
+    /// Plan counter; a replan gets a new id.
+    pub plan_id: u64,
+    /// Planning time on the runtime clock, nanoseconds.
+    pub stamp_ns: u64,
+    /// Id of the camera frame the plan was made from.
+    pub source_frame_id: u64,
+    /// Utility U(p) = R * F(p) - C(p).
+    pub utility: f64,
+    /// Plan feasibility F(p).
+    pub feasibility: f64,
+    /// Plan cost C(p): travel time, seconds.
+    pub cost_s: f64,
+    /// Success reward R.
+    pub reward: f64,
+    /// Number of valid entries in `steps`; read with [`PlanMsg::steps`].
+    pub step_count: u32,
+    /// Keeps `steps` 8-byte aligned without hidden padding.
+    pub reserved: u32,
+    /// The steps; only the first `step_count` are meaningful.
+    pub steps: [PlanStep; MAX_PLAN_STEPS],
+}
+
+impl PlanMsg {
+    /// The plan's steps, after checking `step_count`.
+    pub fn steps(&self) -> Result<&[PlanStep], MessageError> {
+        let count = self.step_count as usize;
+        self.steps.get(..count).ok_or(MessageError::CountTooLarge {
+            message: "PlanMsg",
+            field: "step_count",
+            count: u64::from(self.step_count),
+            capacity: MAX_PLAN_STEPS as u64,
+        })
+    }
+
+    /// Replaces the steps; fails if there are more than [`MAX_PLAN_STEPS`].
+    pub fn set_steps(&mut self, steps: &[PlanStep]) -> Result<(), MessageError> {
+        let slots = self
+            .steps
+            .get_mut(..steps.len())
+            .ok_or(MessageError::CountTooLarge {
+                message: "PlanMsg",
+                field: "steps",
+                count: steps.len() as u64,
+                capacity: MAX_PLAN_STEPS as u64,
+            })?;
+        slots.copy_from_slice(steps);
+        // Cannot truncate: at most MAX_PLAN_STEPS.
+        self.step_count = steps.len() as u32;
+        Ok(())
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// base/state
+
+/// Operational mode of the RMP base as the driver last saw it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[repr(u32)]
+pub enum BaseMode {
+    /// No feedback yet, or the link is lost.
+    Unknown = 0,
+    /// Drives disabled.
+    Disabled = 1,
+    /// Powered, not accepting motion.
+    Standby = 2,
+    /// Accepting motion commands.
+    Tractor = 3,
+    /// Decelerating to zero (loss of commands or a stop request).
+    DecelToZero = 4,
+    /// Powering down.
+    PowerDown = 5,
+    /// A fault latched; see `fault_bits`.
+    Faulted = 6,
+}
+
+impl BaseMode {
+    fn from_wire(value: u32) -> Result<Self, MessageError> {
+        Ok(match value {
+            0 => Self::Unknown,
+            1 => Self::Disabled,
+            2 => Self::Standby,
+            3 => Self::Tractor,
+            4 => Self::DecelToZero,
+            5 => Self::PowerDown,
+            6 => Self::Faulted,
+            _ => {
+                return Err(MessageError::UnknownEnumValue {
+                    message: "BaseStateMsg",
+                    field: "mode",
+                    value,
+                });
+            }
+        })
+    }
+}
+
+/// Odometry and status of the mobile base (`base/state`), published by the base driver.
+#[derive(Clone, Copy, Debug, PartialEq, ZeroCopySend)]
+#[repr(C)]
+#[type_name("grop_ipc::BaseStateMsg/v1")]
+pub struct BaseStateMsg {
+    /// Message counter, increasing.
+    pub seq: u64,
+    /// Time of the feedback on the runtime clock, nanoseconds.
+    pub stamp_ns: u64,
+    /// Odometry pose, world x, metres.
+    pub x_m: f64,
+    /// Odometry pose, world y, metres.
+    pub y_m: f64,
+    /// Heading, radians.
+    pub yaw_rad: f64,
+    /// Forward speed, m/s.
+    pub speed_mps: f64,
+    /// Yaw rate, rad/s.
+    pub yaw_rate_radps: f64,
+    /// Speed currently commanded by the driver (after its limits), m/s.
+    pub commanded_speed_mps: f64,
+    /// Yaw rate currently commanded, rad/s.
+    pub commanded_yaw_rate_radps: f64,
+    /// [`BaseMode`] as an integer; read with [`BaseStateMsg::mode`].
+    pub mode: u32,
+    /// Fault status bits as the base reports them (0: none).
+    pub fault_bits: u32,
+    /// 1 while the base answers, 0 after the driver lost it.
+    pub link_up: u8,
+    /// 1 while the driver's watchdog holds the base at zero velocity.
+    pub watchdog_stopped: u8,
+    /// Zero.
+    pub reserved: [u8; 6],
+}
+
+impl BaseStateMsg {
+    /// The mode, checked.
+    pub fn mode(&self) -> Result<BaseMode, MessageError> {
+        BaseMode::from_wire(self.mode)
+    }
+
+    /// Sets the mode.
+    pub fn set_mode(&mut self, mode: BaseMode) {
+        self.mode = mode as u32;
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// arm/state
+
+/// Safety state of the UR5e as its controller reports it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[repr(u32)]
+pub enum ArmSafety {
+    /// No data yet, or the connection is lost.
+    Unknown = 0,
+    /// Normal operation.
+    Normal = 1,
+    /// Reduced mode.
+    Reduced = 2,
+    /// Protective stop.
+    ProtectiveStop = 3,
+    /// Emergency stop (robot or system).
+    EmergencyStop = 4,
+    /// Safeguard stop.
+    SafeguardStop = 5,
+    /// Fault or violation.
+    Fault = 6,
+}
+
+impl ArmSafety {
+    fn from_wire(value: u32) -> Result<Self, MessageError> {
+        Ok(match value {
+            0 => Self::Unknown,
+            1 => Self::Normal,
+            2 => Self::Reduced,
+            3 => Self::ProtectiveStop,
+            4 => Self::EmergencyStop,
+            5 => Self::SafeguardStop,
+            6 => Self::Fault,
+            _ => {
+                return Err(MessageError::UnknownEnumValue {
+                    message: "ArmStateMsg",
+                    field: "safety",
+                    value,
+                });
+            }
+        })
+    }
+}
+
+/// Joint state, tool pose and gripper of the UR5e (`arm/state`), published by the arm driver.
+#[derive(Clone, Copy, Debug, PartialEq, ZeroCopySend)]
+#[repr(C)]
+#[type_name("grop_ipc::ArmStateMsg/v1")]
+pub struct ArmStateMsg {
+    /// Message counter, increasing.
+    pub seq: u64,
+    /// Time of the RTDE package on the runtime clock, nanoseconds.
+    pub stamp_ns: u64,
+    /// Actual joint positions, radians (base, shoulder, elbow, wrist 1-3).
+    pub joints_rad: [f64; 6],
+    /// Actual joint speeds, rad/s.
+    pub joint_speeds_radps: [f64; 6],
+    /// Tool flange pose in the arm base frame: x, y, z (m), rotation vector (rad).
+    pub flange_pose: [f64; 6],
+    /// Gripper opening, metres (0 closed).
+    pub gripper_opening_m: f64,
+    /// [`ArmSafety`] as an integer; read with [`ArmStateMsg::safety`].
+    pub safety: u32,
+    /// Robot mode as the controller reports it (RTDE `robot_mode`).
+    pub robot_mode: i32,
+    /// 1 while a program runs on the controller.
+    pub program_running: u8,
+    /// 1 while the driver is connected to the controller.
+    pub connected: u8,
+    /// 1 while the gripper reports an object held.
+    pub object_held: u8,
+    /// Zero.
+    pub reserved: [u8; 5],
+}
+
+impl ArmStateMsg {
+    /// The safety state, checked.
+    pub fn safety(&self) -> Result<ArmSafety, MessageError> {
+        ArmSafety::from_wire(self.safety)
+    }
+
+    /// Sets the safety state.
+    pub fn set_safety(&mut self, safety: ArmSafety) {
+        self.safety = safety as u32;
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// events
+
+/// Capacity of an event's text.
+pub const EVENT_DETAIL_CAPACITY: usize = 112;
+
+/// What happened.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[repr(u32)]
+#[non_exhaustive]
+pub enum EventKind {
+    /// A new plan starts executing.
+    PlanStarted = 1,
+    /// The base reached a step's navigation goal.
+    GoalReached = 2,
+    /// An object was unloaded.
+    UnloadSucceeded = 3,
+    /// An unload failed (unreachable, collision, gripper); a replan follows.
+    UnloadFailed = 4,
+    /// The scene changed or a step failed: the planner is asked for a new plan.
+    ReplanRequested = 5,
+    /// Every step of the plan is done.
+    PlanFinished = 6,
+    /// An input went stale (commands, state, plan): motion stopped.
+    StaleInput = 7,
+    /// A device stopped answering (base on CAN, arm on TCP): motion stopped.
+    LinkLost = 8,
+    /// The base reported a fault.
+    BaseFault = 9,
+    /// The arm reported a protective or emergency stop.
+    ArmStopped = 10,
+}
+
+impl EventKind {
+    fn from_wire(value: u32) -> Result<Self, MessageError> {
+        Ok(match value {
+            1 => Self::PlanStarted,
+            2 => Self::GoalReached,
+            3 => Self::UnloadSucceeded,
+            4 => Self::UnloadFailed,
+            5 => Self::ReplanRequested,
+            6 => Self::PlanFinished,
+            7 => Self::StaleInput,
+            8 => Self::LinkLost,
+            9 => Self::BaseFault,
+            10 => Self::ArmStopped,
+            _ => {
+                return Err(MessageError::UnknownEnumValue {
+                    message: "EventMsg",
+                    field: "kind",
+                    value,
+                });
+            }
+        })
+    }
+}
+
+/// Something the executive or a driver wants the rest of the system to know (`events`).
+#[derive(Clone, Copy, Debug, PartialEq, ZeroCopySend)]
+#[repr(C)]
+#[type_name("grop_ipc::EventMsg/v1")]
+pub struct EventMsg {
+    /// Message counter of the publisher, increasing.
+    pub seq: u64,
+    /// Time on the runtime clock, nanoseconds.
+    pub stamp_ns: u64,
+    /// The plan it concerns (0: none).
+    pub plan_id: u64,
+    /// [`EventKind`] as an integer; read with [`EventMsg::kind`].
+    pub kind: u32,
+    /// The plan step it concerns.
+    pub step_index: u32,
+    /// Bytes of `detail` in use.
+    pub detail_len: u32,
+    /// Zero.
+    pub reserved: u32,
+    /// UTF-8 text for humans and logs; read with [`EventMsg::detail`].
+    pub detail: [u8; EVENT_DETAIL_CAPACITY],
+}
+
+impl EventMsg {
+    /// An event of `kind` with `detail` cut (at a character boundary) to the capacity.
+    pub fn new(kind: EventKind, stamp_ns: u64, detail: &str) -> Self {
+        let mut event = Self {
+            seq: 0,
+            stamp_ns,
+            plan_id: 0,
+            kind: kind as u32,
+            step_index: 0,
+            detail_len: 0,
+            reserved: 0,
+            detail: [0; EVENT_DETAIL_CAPACITY],
+        };
+        let mut end = detail.len().min(EVENT_DETAIL_CAPACITY);
+        while !detail.is_char_boundary(end) {
+            end -= 1;
+        }
+        event.detail[..end].copy_from_slice(&detail.as_bytes()[..end]);
+        // Cannot truncate: at most EVENT_DETAIL_CAPACITY.
+        event.detail_len = end as u32;
+        event
+    }
+
+    /// The kind, checked.
+    pub fn kind(&self) -> Result<EventKind, MessageError> {
+        EventKind::from_wire(self.kind)
+    }
+
+    /// The text, checked.
+    pub fn detail(&self) -> Result<&str, MessageError> {
+        let bytes =
+            self.detail
+                .get(..self.detail_len as usize)
+                .ok_or(MessageError::CountTooLarge {
+                    message: "EventMsg",
+                    field: "detail_len",
+                    count: u64::from(self.detail_len),
+                    capacity: EVENT_DETAIL_CAPACITY as u64,
+                })?;
+        core::str::from_utf8(bytes).map_err(|_| MessageError::DetailNotUtf8)
+    }
+}
