@@ -180,7 +180,7 @@ def main() -> int:
             loss.backward()
             opt.step()
             sched.step()
-            total += float(loss)
+            total += float(loss.detach())
         epochs_run = epoch + 1
         m = metrics(predict(model, images[eval_ix]), labels[eval_ix], mask[eval_ix])
         if m["brier"] < best[0]:
@@ -227,7 +227,7 @@ def main() -> int:
                     "scenes": int(len(np.unique(data["scene"]))),
                     "train_tasks": int(len(train_ix)), "validation_tasks": int(len(val_ix)),
                     "success_fraction": float((labels * mask).sum() / mask.sum()),
-                    "generator": meta_in},
+                    "generator": meta_in.get("generator", {})},
         "training": {"epochs_run": epochs_run, "best_epoch": best[2], "batch": args.batch, "lr": args.lr,
                      "optimizer": "AdamW + one-cycle cosine", "weight_decay": args.weight_decay,
                      "loss": "BCE on success fraction, masked, weighted by trials per cell",

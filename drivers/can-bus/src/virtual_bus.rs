@@ -217,6 +217,8 @@ pub struct VirtualCanBus {
     subscriber: iceoryx2::port::subscriber::Subscriber<Ipc, WireFrame, ()>,
     notifier: iceoryx2::port::notifier::Notifier<Ipc>,
     listener: iceoryx2::port::listener::Listener<Ipc>,
+    /// The listener's socket, valid as long as `listener` lives.
+    listener_fd: i32,
     reorder: BinaryHeap<Reverse<Pending>>,
     reorder_capacity: usize,
     last_seq_by_sender: HashMap<u64, u64>,
@@ -375,6 +377,9 @@ impl VirtualCanBus {
             .create()
             .map_err(|e| ipc("creating the wake-up notifier")(&e))?;
 
+        // SAFETY: the descriptor belongs to `listener`, which this node owns and keeps open for
+        // its whole life; it is only ever polled, never closed or read through this copy.
+        let listener_fd = unsafe { listener.file_descriptor().native_handle() };
         let counter = NODES_IN_PROCESS.fetch_add(1, Ordering::Relaxed);
         let sender_key = (u64::from(std::process::id()) << 32) | u64::from(counter);
         // Room for a full queue from a handful of senders; draining stops when it is full.
@@ -389,6 +394,7 @@ impl VirtualCanBus {
             subscriber,
             notifier,
             listener,
+            listener_fd,
             reorder: BinaryHeap::with_capacity(reorder_capacity),
             reorder_capacity,
             last_seq_by_sender: HashMap::with_capacity(max_nodes),
@@ -505,9 +511,13 @@ impl CanBus for VirtualCanBus {
             if remaining.is_zero() {
                 return Ok(None);
             }
-            self.listener
-                .timed_wait(|_| {}, remaining)
-                .map_err(|error| self.ipc_recv_error(&error))?;
+            // poll(2) on the listener's socket instead of `Listener::timed_wait`: the latter
+            // uses a socket receive timeout, which the kernel rounds up to whole scheduler ticks
+            // (4-8 ms measured for a 200 us timeout); ppoll sleeps on a high-resolution timer.
+            wait_readable(self.listener_fd, remaining).map_err(|error| RecvError::Ipc {
+                bus: self.bus_name.clone(),
+                detail: format!("waiting for a wake-up: {error}"),
+            })?;
         }
     }
 }
@@ -536,6 +546,30 @@ fn service_name(
     what: &str,
 ) -> Result<ServiceName, iceoryx2::service::service_name::ServiceNameError> {
     ServiceName::new(&format!("{SERVICE_PREFIX}{bus_name}/{what}"))
+}
+
+/// Sleeps until `fd` is readable or `timeout` passed (an interrupted sleep returns early; the
+/// caller loops on its own deadline).
+fn wait_readable(fd: i32, timeout: Duration) -> std::io::Result<()> {
+    let mut poll_fd = libc::pollfd {
+        fd,
+        events: libc::POLLIN,
+        revents: 0,
+    };
+    let timeout = libc::timespec {
+        tv_sec: libc::time_t::try_from(timeout.as_secs()).unwrap_or(libc::time_t::MAX),
+        // Below 1e9, so it fits a c_long on every target.
+        tv_nsec: timeout.subsec_nanos() as libc::c_long,
+    };
+    // SAFETY: one valid pollfd, a valid timespec, no signal mask change.
+    let status = unsafe { libc::ppoll(&mut poll_fd, 1, &timeout, std::ptr::null()) };
+    if status < 0 {
+        let error = std::io::Error::last_os_error();
+        if error.kind() != std::io::ErrorKind::Interrupted {
+            return Err(error);
+        }
+    }
+    Ok(())
 }
 
 /// CLOCK_MONOTONIC in nanoseconds: one clock for every process on the host, unlike `Instant`,

@@ -3,10 +3,10 @@
 use std::time::Duration;
 
 use log::{debug, info, warn};
+use motion_control::Twist;
 use motion_control::limiter::{LimitsError, TwistLimiter, TwistLimits};
 use motion_control::mode::{ModeSequencer, ModeStep};
 use motion_control::watchdog::Watchdog;
-use motion_control::Twist;
 use rmp_codec::faults::FaultStatus;
 use rmp_codec::feedback::{
     self, FeedbackAssembler, FeedbackBitmaps, FeedbackError, FeedbackItem, FeedbackLayout,
@@ -18,6 +18,28 @@ use rmp_codec::v3::{
 
 use crate::link::{LinkError, RmpLink};
 use crate::odometry::{DeadReckoning, Integrators, Odometry};
+
+/// The feedback items the driver selects by default: everything it uses and nothing else
+/// (16 items, 8 frames per reply instead of the factory 48, so about 1 ms of a 1 Mbit/s bus per
+/// reply). `rmp-driver.dbc` describes this configuration.
+pub const DRIVER_FEEDBACK_ITEMS: [FeedbackItem; 16] = [
+    FeedbackItem::FaultStatusWord1,
+    FeedbackItem::FaultStatusWord2,
+    FeedbackItem::FaultStatusWord3,
+    FeedbackItem::FaultStatusWord4,
+    FeedbackItem::OperationalState,
+    FeedbackItem::MinPropulsionBattSoc,
+    FeedbackItem::YawRateLimit,
+    FeedbackItem::VelocityLimit,
+    FeedbackItem::LinearVelocity,
+    FeedbackItem::DifferentialWheelVelocity,
+    FeedbackItem::RightFrontPosition,
+    FeedbackItem::LeftFrontPosition,
+    FeedbackItem::RightRearPosition,
+    FeedbackItem::LeftRearPosition,
+    FeedbackItem::LinearPosition,
+    FeedbackItem::FramTrackWidth,
+];
 
 /// Modes the driver can ask for.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -69,7 +91,8 @@ pub struct RmpBaseConfig {
     /// Speed and acceleration limits applied before normalisation.
     pub limits: TwistLimits,
     /// Feedback items to ask for; written to the base at start-up (NVM may hold anything).
-    /// Must include the operational state and the fault words.
+    /// Must include the operational state and the fault words. Default:
+    /// [`DRIVER_FEEDBACK_ITEMS`]; `FeedbackBitmaps::DEFAULT` gives the factory set (`rmp.dbc`).
     pub feedback: FeedbackBitmaps,
     /// Skip writing the feedback bitmaps (when the base is known to hold `feedback`).
     pub assume_feedback_configured: bool,
@@ -95,7 +118,7 @@ impl Default for RmpBaseConfig {
             mode_resend: Duration::from_millis(100),
             mode_timeout: Duration::from_secs(2),
             limits: TwistLimits::default(),
-            feedback: FeedbackBitmaps::DEFAULT,
+            feedback: FeedbackBitmaps::from_items(&DRIVER_FEEDBACK_ITEMS),
             assume_feedback_configured: false,
             yaw_sign: 1.0,
             fallback_velocity_limit_mps: NvmFloat::MaxVelocityMps.default_value(),
@@ -125,7 +148,9 @@ pub enum ConfigError {
     #[error("rmp-base config: feedback bitmaps must include {0:?}")]
     MissingFeedback(FeedbackItem),
     /// The firmware has fewer feedback bitmaps than the selection uses.
-    #[error("rmp-base config: firmware {profile:?} has {available} feedback bitmaps, bitmap {used} is used")]
+    #[error(
+        "rmp-base config: firmware {profile:?} has {available} feedback bitmaps, bitmap {used} is used"
+    )]
     FeedbackBitmapUnavailable {
         /// The profile.
         profile: FirmwareProfile,
@@ -176,7 +201,9 @@ impl RmpBaseConfig {
             }
         }
         let available = self.profile.feedback_bitmap_count();
-        if let Some(used) = (0..4u8).rev().find(|i| self.feedback.words()[*i as usize] != 0)
+        if let Some(used) = (0..4u8)
+            .rev()
+            .find(|i| self.feedback.words()[*i as usize] != 0)
             && used >= available
         {
             return Err(ConfigError::FeedbackBitmapUnavailable {
@@ -451,7 +478,11 @@ impl<L: RmpLink> RmpBase<L> {
             },
         }
 
-        let since = self.status.last_feedback.or(self.started_at).unwrap_or(started_at);
+        let since = self
+            .status
+            .last_feedback
+            .or(self.started_at)
+            .unwrap_or(started_at);
         let silent_for = now.saturating_sub(since);
         let silent = silent_for > self.config.response_timeout;
 

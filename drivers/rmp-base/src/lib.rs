@@ -32,7 +32,10 @@ mod driver;
 mod link;
 mod odometry;
 
-pub use driver::{BaseError, BaseMode, BaseStatus, ConfigError, RmpBase, RmpBaseConfig, Tick};
+pub use driver::{
+    BaseError, BaseMode, BaseStatus, ConfigError, DRIVER_FEEDBACK_ITEMS, RmpBase, RmpBaseConfig,
+    Tick,
+};
 pub use link::{CanLink, LinkError, RmpLink, from_can, to_can};
 pub use odometry::Odometry;
 

@@ -98,18 +98,53 @@ mod tests {
     fn straight_then_turn_in_place() {
         let mut d = DeadReckoning::default();
         let track = 0.7;
-        d.update(Integrators { linear_m: 5.0, right_m: 5.0, left_m: 5.0 }, track);
+        d.update(
+            Integrators {
+                linear_m: 5.0,
+                right_m: 5.0,
+                left_m: 5.0,
+            },
+            track,
+        );
         assert_eq!(d.odometry.x_m, 0.0, "first set only sets the reference");
-        d.update(Integrators { linear_m: 6.0, right_m: 6.0, left_m: 6.0 }, track);
+        d.update(
+            Integrators {
+                linear_m: 6.0,
+                right_m: 6.0,
+                left_m: 6.0,
+            },
+            track,
+        );
         assert!((d.odometry.x_m - 1.0).abs() < 1e-12);
         // Quarter turn in place: the wheels move +-(pi/2)(track/2).
         let q = std::f64::consts::FRAC_PI_2 * track / 2.0;
-        d.update(Integrators { linear_m: 6.0, right_m: 6.0 + q, left_m: 6.0 - q }, track);
+        d.update(
+            Integrators {
+                linear_m: 6.0,
+                right_m: 6.0 + q,
+                left_m: 6.0 - q,
+            },
+            track,
+        );
         assert!((d.odometry.yaw_rad - std::f64::consts::FRAC_PI_2).abs() < 1e-12);
-        d.update(Integrators { linear_m: 6.5, right_m: 6.5 + q, left_m: 6.5 - q }, track);
+        d.update(
+            Integrators {
+                linear_m: 6.5,
+                right_m: 6.5 + q,
+                left_m: 6.5 - q,
+            },
+            track,
+        );
         assert!((d.odometry.y_m - 0.5).abs() < 1e-12 && (d.odometry.x_m - 1.0).abs() < 1e-12);
         // An integrator reset (jump back to 0) is skipped, not integrated.
-        d.update(Integrators { linear_m: 0.0, right_m: 0.0, left_m: 0.0 }, track);
+        d.update(
+            Integrators {
+                linear_m: 0.0,
+                right_m: 0.0,
+                left_m: 0.0,
+            },
+            track,
+        );
         assert_eq!(d.skipped_steps, 1);
         assert!((d.odometry.y_m - 0.5).abs() < 1e-12);
     }

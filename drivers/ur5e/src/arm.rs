@@ -292,7 +292,6 @@ enum Goal {
 pub struct Ur5eArm {
     cfg: ArmConfig,
     rtde: RtdeClient,
-    indices: [usize; ARM_OUTPUTS.len()],
     package: DataPackage,
     heartbeat: InputRecipe,
     heartbeat_count: i32,
@@ -337,9 +336,8 @@ impl Ur5eArm {
         }
         let names: Vec<&str> = ARM_OUTPUTS.iter().map(|(n, _)| *n).collect();
         let recipe = rtde.setup_outputs(&names, cfg.frequency_hz)?.clone();
-        let mut indices = [0; ARM_OUTPUTS.len()];
+        // The recipe is ARM_OUTPUTS in order; check the controller agrees on every type.
         for (i, (name, expected)) in ARM_OUTPUTS.iter().enumerate() {
-            indices[i] = i;
             let got = recipe.types[i];
             if got != *expected {
                 return Err(ArmConnectError::FieldType {
@@ -370,7 +368,6 @@ impl Ur5eArm {
         let mut arm = Self {
             cfg,
             rtde,
-            indices,
             package,
             heartbeat,
             heartbeat_count: 0,
@@ -414,21 +411,20 @@ impl Ur5eArm {
 
     fn decode_state(&mut self) {
         let v = &self.package.values;
-        let ix = &self.indices;
-        let int = |i: usize| match v[ix[i]] {
+        let int = |i: usize| match v[i] {
             RtdeValue::Int32(x) => x,
             _ => i32::MIN,
         };
-        let uint = |i: usize| match v[ix[i]] {
+        let uint = |i: usize| match v[i] {
             RtdeValue::Uint32(x) => x,
             _ => 0,
         };
         self.state = ArmState {
-            timestamp_s: v[ix[0]].as_f64().unwrap_or(f64::NAN),
-            q_rad: vec6(&v[ix[1]]),
-            qd_radps: vec6(&v[ix[2]]),
-            target_q_rad: vec6(&v[ix[3]]),
-            tcp_pose: TcpPose::from_array(vec6(&v[ix[4]])),
+            timestamp_s: v[0].as_f64().unwrap_or(f64::NAN),
+            q_rad: vec6(&v[1]),
+            qd_radps: vec6(&v[2]),
+            target_q_rad: vec6(&v[3]),
+            tcp_pose: TcpPose::from_array(vec6(&v[4])),
             robot_mode: int(5),
             safety_mode: int(6),
             safety_status_bits: uint(7),

@@ -3,7 +3,7 @@
 //! Replies are checked against the exact strings of PolyScope 5 (reference §4); anything
 //! else is a [`DashboardError::UnexpectedReply`] naming the command and the reply.
 
-use std::io::{self, BufRead, BufReader, Write};
+use std::io::{self, BufRead, BufReader, Read, Write};
 use std::net::{SocketAddr, TcpStream, ToSocketAddrs};
 use std::time::Duration;
 
@@ -11,6 +11,8 @@ use thiserror::Error;
 
 /// Default dashboard port.
 pub const DASHBOARD_PORT: u16 = 29999;
+/// Longest reply line accepted (bytes).
+const MAX_LINE_LEN: u64 = 4096;
 /// The welcome line the server sends on connect.
 pub const WELCOME: &str = "Connected: Universal Robots Dashboard Server";
 
@@ -262,7 +264,11 @@ impl DashboardClient {
 
     fn read_line(&mut self, command: &str) -> Result<String, DashboardError> {
         self.line.clear();
-        match self.reader.read_line(&mut self.line) {
+        // Bounded: a misbehaving server cannot make us buffer without end.
+        match (&mut self.reader)
+            .take(MAX_LINE_LEN)
+            .read_line(&mut self.line)
+        {
             Ok(0) => Err(DashboardError::Closed { addr: self.addr }),
             Ok(_) => Ok(self.line.trim_end_matches(['\n', '\r']).to_string()),
             Err(e)

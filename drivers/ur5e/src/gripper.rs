@@ -11,7 +11,7 @@
 //! 1 activating, 3 active), OBJ (0 moving, 1 contact while opening, 2 contact while closing,
 //! 3 at the requested position), FLT (fault code, 0 = none), PRE (echo of the request).
 
-use std::io::{self, BufRead, BufReader, Write};
+use std::io::{self, BufRead, BufReader, Read, Write};
 use std::net::{SocketAddr, TcpStream, ToSocketAddrs};
 use std::time::{Duration, Instant};
 
@@ -147,7 +147,7 @@ impl RobotiqGripper {
             .write_all(format!("{command}\n").as_bytes())
             .map_err(|source| GripperError::Io { addr, source })?;
         self.line.clear();
-        match self.reader.read_line(&mut self.line) {
+        match (&mut self.reader).take(4096).read_line(&mut self.line) {
             Ok(0) => Err(GripperError::Closed { addr }),
             Ok(_) => Ok(self.line.trim().to_string()),
             Err(e)

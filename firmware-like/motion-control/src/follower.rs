@@ -4,7 +4,7 @@
 
 use heapless::Vec;
 
-use crate::{wrap_angle, Pose2, Twist};
+use crate::{Pose2, Twist, wrap_angle};
 
 /// Follower tuning.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -174,7 +174,10 @@ impl<const N: usize> PathFollower<N> {
             let d = dist(from, to);
             if d >= left && d > 0.0 {
                 let t = left / d;
-                return [from[0] + t * (to[0] - from[0]), from[1] + t * (to[1] - from[1])];
+                return [
+                    from[0] + t * (to[0] - from[0]),
+                    from[1] + t * (to[1] - from[1]),
+                ];
             }
             left -= d;
             from = to;
@@ -238,7 +241,11 @@ fn dist(a: [f32; 2], b: [f32; 2]) -> f32 {
 mod tests {
     use super::*;
 
-    fn drive<const N: usize>(f: &mut PathFollower<N>, mut pose: Pose2, steps: usize) -> (Pose2, bool, f32) {
+    fn drive<const N: usize>(
+        f: &mut PathFollower<N>,
+        mut pose: Pose2,
+        steps: usize,
+    ) -> (Pose2, bool, f32) {
         let mut max_dev: f32 = 0.0;
         for _ in 0..steps {
             match f.step(&pose) {

@@ -134,13 +134,21 @@ impl TwistLimiter {
 
     /// Forces the state (for example to the measured velocity after a mode change).
     pub fn reset_to(&mut self, twist: Twist) {
-        self.output = if twist.is_finite() { twist } else { Twist::ZERO };
+        self.output = if twist.is_finite() {
+            twist
+        } else {
+            Twist::ZERO
+        };
     }
 
     /// One period of `dt_s` toward `target` (clamped first); returns the new command.
     pub fn step(&mut self, target: Twist, dt_s: f32) -> Twist {
         let target = self.limits.clamp(target);
-        let dt_s = if dt_s.is_finite() && dt_s > 0.0 { dt_s } else { 0.0 };
+        let dt_s = if dt_s.is_finite() && dt_s > 0.0 {
+            dt_s
+        } else {
+            0.0
+        };
         let l = &self.limits;
         self.output = Twist {
             speed_mps: slew(
@@ -197,10 +205,7 @@ mod tests {
     #[test]
     fn clamps_envelope_and_treats_nan_as_stop() {
         let limits = TwistLimits::default();
-        assert_eq!(
-            limits.clamp(Twist::new(-3.0, 9.0)),
-            Twist::new(-0.2, 1.0)
-        );
+        assert_eq!(limits.clamp(Twist::new(-3.0, 9.0)), Twist::new(-0.2, 1.0));
         assert_eq!(limits.clamp(Twist::new(f32::NAN, 0.5)), Twist::ZERO);
         let mut l = TwistLimiter::new(limits);
         l.reset_to(Twist::new(0.4, 0.0));

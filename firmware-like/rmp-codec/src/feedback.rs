@@ -10,10 +10,10 @@
 
 use core::fmt;
 
+use crate::RawFrame;
 use crate::faults::FaultStatus;
 use crate::frame::{be_word, be_words};
 use crate::v3::OperationalState;
-use crate::RawFrame;
 
 /// Id of the first feedback frame.
 pub const FIRST_ID: u16 = 0x502;
@@ -135,7 +135,7 @@ feedback_items! {
     AbbSystemStatus = 62, "abb_system_status", Bits, "";
     AuxBattStatus = 63, "aux_batt_status", Bits, "";
     AuxBattFaults = 64, "aux_batt_faults", Bits, "";
-    SevenP2VBattVoltage = 65, "7p2v_batt_voltage", F32, "V";
+    SevenP2VBattVoltage = 65, "batt_7p2v_voltage", F32, "V";
     SpSwBuildId = 66, "sp_sw_build_id", U32, "";
     UipSwBuildId = 67, "uip_sw_build_id", U32, "";
     Mcu0InstPower = 68, "mcu_0_inst_power_w", F32, "W";
@@ -471,7 +471,11 @@ impl FeedbackSet {
         (0..self.layout.frame_count()).map(move |k| {
             let first = self.words[2 * k];
             // Odd count: pad the last frame with a zero word (documented choice).
-            let second = if 2 * k + 1 < n { self.words[2 * k + 1] } else { 0 };
+            let second = if 2 * k + 1 < n {
+                self.words[2 * k + 1]
+            } else {
+                0
+            };
             RawFrame::full(FIRST_ID + k as u16, be_words(first, second))
         })
     }

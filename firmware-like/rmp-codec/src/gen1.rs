@@ -5,8 +5,8 @@
 //! Commands are in the base's own counts; [`Gen1Scaling`] converts, with the per-model factors
 //! the sources disagree on kept as settings.
 
-use crate::v3::{DecodeError, EncodeError};
 use crate::RawFrame;
+use crate::v3::{DecodeError, EncodeError};
 
 /// Motion + configuration command.
 pub const MOTION_ID: u16 = 0x0413;
@@ -455,7 +455,10 @@ mod tests {
         .encode()
         .unwrap();
         assert_eq!(reset.data(), &[0, 0, 0, 0, 0x00, 0x32, 0x00, 0x0F]);
-        assert_eq!(Gen1Command::decode(&reset).unwrap().config, Some(Gen1Config::ResetIntegrators(15)));
+        assert_eq!(
+            Gen1Command::decode(&reset).unwrap().config,
+            Some(Gen1Config::ResetIntegrators(15))
+        );
         assert_eq!(shutdown_frame().id(), 0x412);
     }
 
@@ -501,14 +504,19 @@ mod tests {
             turn_counts: 0,
             config: None,
         };
-        assert!(matches!(too_fast.encode(), Err(EncodeError::OutOfRange { .. })));
-        assert!(Gen1Command {
-            velocity_counts: 0,
-            turn_counts: 0,
-            config: Some(Gen1Config::MaxVelocityScale(17)),
-        }
-        .encode()
-        .is_err());
+        assert!(matches!(
+            too_fast.encode(),
+            Err(EncodeError::OutOfRange { .. })
+        ));
+        assert!(
+            Gen1Command {
+                velocity_counts: 0,
+                turn_counts: 0,
+                config: Some(Gen1Config::MaxVelocityScale(17)),
+            }
+            .encode()
+            .is_err()
+        );
         let unknown = RawFrame::new(0x413, &[0, 0, 0, 0, 0, 99, 0, 0]).unwrap();
         assert_eq!(
             Gen1Command::decode(&unknown),

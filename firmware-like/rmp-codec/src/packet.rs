@@ -36,7 +36,9 @@ impl fmt::Display for PacketError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match *self {
             PacketError::TooLong => write!(f, "packet too long"),
-            PacketError::BadLength { len } => write!(f, "packet of {len} bytes has no valid layout"),
+            PacketError::BadLength { len } => {
+                write!(f, "packet of {len} bytes has no valid layout")
+            }
             PacketError::BadCrc { received, computed } => {
                 write!(f, "CRC {received:#06x} in packet, {computed:#06x} computed")
             }
@@ -143,11 +145,12 @@ mod tests {
         let n = encode_command(0x501, &[0, 0], &mut buf).unwrap();
         assert_eq!(&buf[..n], &[5, 1, 0, 0, 0, 0, 0, 0, 0, 0, 0x80, 0x1D]);
         // §3.1 (Stanley 0x1800 with three words).
-        let n = encode_command(0x1800, &[0.5f32.to_bits(), 0, 0.2f32.to_bits()], &mut buf)
-            .unwrap();
+        let n = encode_command(0x1800, &[0.5f32.to_bits(), 0, 0.2f32.to_bits()], &mut buf).unwrap();
         assert_eq!(
             &buf[..n],
-            &[0x18, 0, 0x3F, 0, 0, 0, 0, 0, 0, 0, 0x3E, 0x4C, 0xCC, 0xCD, 0xE6, 0x14]
+            &[
+                0x18, 0, 0x3F, 0, 0, 0, 0, 0, 0, 0, 0x3E, 0x4C, 0xCC, 0xCD, 0xE6, 0x14
+            ]
         );
         assert_eq!(decode_command(&buf[..n]).unwrap().0, 0x1800);
         let n = encode_command(0x1803, &[6, 1], &mut buf).unwrap();

@@ -8,8 +8,8 @@
 
 use core::fmt;
 
-use crate::frame::{be_word, be_words};
 use crate::RawFrame;
+use crate::frame::{be_word, be_words};
 
 /// Standard motion command: normalised velocity and yaw rate, float32 each.
 pub const MOTION_ID: u16 = 0x500;
@@ -75,7 +75,10 @@ impl fmt::Display for DecodeError {
                 write!(f, "frame id {got:#05x}, expected {expected:#05x}")
             }
             DecodeError::BadLength { id, expected, got } => {
-                write!(f, "frame {id:#05x} has {got} data bytes, expected {expected}")
+                write!(
+                    f,
+                    "frame {id:#05x} has {got} data bytes, expected {expected}"
+                )
             }
             DecodeError::NonFinite { id, field } => {
                 write!(f, "frame {id:#05x} field {field} is not a finite float")
@@ -87,7 +90,10 @@ impl fmt::Display for DecodeError {
                 write!(f, "unknown configuration command {command}")
             }
             DecodeError::BadParameter { command, parameter } => {
-                write!(f, "configuration command {command}: bad parameter {parameter:#x}")
+                write!(
+                    f,
+                    "configuration command {command}: bad parameter {parameter:#x}"
+                )
             }
         }
     }
@@ -400,9 +406,7 @@ impl NvmFloat {
     pub const fn default_value(self) -> f32 {
         match self {
             Self::MaxVelocityMps => 2.2352,
-            Self::MaxAccelerationMps2 | Self::MaxDecelerationMps2 | Self::MaxDtzDecelMps2 => {
-                3.923
-            }
+            Self::MaxAccelerationMps2 | Self::MaxDecelerationMps2 | Self::MaxDtzDecelMps2 => 3.923,
             Self::CoastDownAccelMps2 => 0.1962,
             Self::MaxTurnRateRadps => 3.0,
             Self::MaxTurnAccelerationRadps2 => 28.274,
@@ -580,7 +584,10 @@ impl ConfigCommand {
             }
             ConfigCommand::SetInputConfigBitmap(bits) => (n.input_bitmap, bits),
             ConfigCommand::SetEthernet(field, value) => {
-                let offset = ETHERNET_FIELDS.iter().position(|f| *f == field).unwrap_or(0);
+                let offset = ETHERNET_FIELDS
+                    .iter()
+                    .position(|f| *f == field)
+                    .unwrap_or(0);
                 (n.ethernet + offset as u32, value)
             }
             ConfigCommand::SetFeedbackBitmap { index, bitmap } => {
@@ -748,7 +755,10 @@ mod tests {
         let nan = RawFrame::new(0x500, &[0x7F, 0xC0, 0, 0, 0, 0, 0, 0]).unwrap();
         assert_eq!(
             MotionCommand::decode(&nan),
-            Err(DecodeError::NonFinite { id: 0x500, field: 0 })
+            Err(DecodeError::NonFinite {
+                id: 0x500,
+                field: 0
+            })
         );
         let two = RawFrame::new(0x500, &[0, 0, 0, 0, 0x40, 0, 0, 0]).unwrap();
         assert!(matches!(

@@ -2,11 +2,11 @@
 //! have produced; encode/decode round trips.
 
 use proptest::prelude::*;
+use rmp_codec::RawFrame;
 use rmp_codec::feedback::{FeedbackAssembler, FeedbackBitmaps, FeedbackLayout, FeedbackSet};
 use rmp_codec::gen1::{Gen1Command, Gen1Feedback};
 use rmp_codec::packet::{decode_command, encode_command};
 use rmp_codec::v3::{ConfigCommand, FirmwareProfile, HostCommand, MotionCommand};
-use rmp_codec::RawFrame;
 
 fn any_frame() -> impl Strategy<Value = RawFrame> {
     (0u16..=0x7FF, proptest::collection::vec(any::<u8>(), 0..=8))

@@ -27,7 +27,13 @@ pub struct EvalSpec {
 
 impl Default for EvalSpec {
     fn default() -> Self {
-        Self { seed: 9_000, scenes: 6, targets_per_scene: 5, trials_per_cell: 25, chairs: vec![15, 20, 25] }
+        Self {
+            seed: 9_000,
+            scenes: 6,
+            targets_per_scene: 5,
+            trials_per_cell: 25,
+            chairs: vec![15, 20, 25],
+        }
     }
 }
 
@@ -84,13 +90,21 @@ pub fn build_eval_set(robot: &RobotConfig, spec: &EvalSpec) -> Result<EvalSet, E
     let scenes: Vec<Scene> = (0..spec.scenes)
         .map(|i| {
             let chairs = spec.chairs[i % spec.chairs.len()];
-            world::generate::evaluation_scene(world::generate::mix_seed(spec.seed, 0x7073_6900, i as u64), chairs, spec.targets_per_scene)
+            world::generate::evaluation_scene(
+                world::generate::mix_seed(spec.seed, 0x7073_6900, i as u64),
+                chairs,
+                spec.targets_per_scene,
+            )
         })
         .collect();
     let jobs: Vec<(usize, [f64; 3], Side)> = scenes
         .iter()
         .enumerate()
-        .flat_map(|(i, s)| s.targets.iter().flat_map(move |t| Side::BOTH.map(|side| (i, t.as_array(), side))))
+        .flat_map(|(i, s)| {
+            s.targets
+                .iter()
+                .flat_map(move |t| Side::BOTH.map(|side| (i, t.as_array(), side)))
+        })
         .collect();
     let tasks = jobs
         .par_iter()
@@ -103,24 +117,45 @@ pub fn build_eval_set(robot: &RobotConfig, spec: &EvalSpec) -> Result<EvalSet, E
                 target,
                 side,
                 crop: render_crop(s, target[0], side),
-                truth: trial_sim::ground_truth_heatmap(s, robot, target, side, spec.trials_per_cell, seed),
+                truth: trial_sim::ground_truth_heatmap(
+                    s,
+                    robot,
+                    target,
+                    side,
+                    spec.trials_per_cell,
+                    seed,
+                ),
             }
         })
         .collect();
-    Ok(EvalSet { spec: spec.clone(), robot: robot.clone(), scenes, tasks })
+    Ok(EvalSet {
+        spec: spec.clone(),
+        robot: robot.clone(),
+        scenes,
+        tasks,
+    })
 }
 
 /// Largest number of queries per evaluator call: both sides of three targets, as the planner asks.
 pub const QUERIES_PER_CALL: usize = 6;
 
 /// Runs `evaluator` on every task of `set` and compares with the truth.
-pub fn evaluate(evaluator: &mut dyn FeasibilityEvaluator, set: &EvalSet) -> Result<QualityReport, FeasibilityError> {
+pub fn evaluate(
+    evaluator: &mut dyn FeasibilityEvaluator,
+    set: &EvalSet,
+) -> Result<QualityReport, FeasibilityError> {
     let mut acc = MetricsAccumulator::default();
     let mut out = vec![Heatmap::zeros(); QUERIES_PER_CALL];
     for chunk in set.tasks.chunks(QUERIES_PER_CALL) {
         let queries: Vec<FeasibilityQuery<'_>> = chunk
             .iter()
-            .map(|t| FeasibilityQuery { scene: &set.scenes[t.scene], robot: &set.robot, target: t.target, side: t.side, crop: &t.crop })
+            .map(|t| FeasibilityQuery {
+                scene: &set.scenes[t.scene],
+                robot: &set.robot,
+                target: t.target,
+                side: t.side,
+                crop: &t.crop,
+            })
             .collect();
         let out = &mut out[..chunk.len()];
         evaluator.evaluate(&queries, out)?;

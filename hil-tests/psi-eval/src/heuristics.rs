@@ -12,7 +12,9 @@
 //!
 //! The heuristics fill the paper's candidate area (the cells Smp draws from) and leave 0 elsewhere.
 
-use planner::feasibility::{FeasibilityError, FeasibilityEvaluator, FeasibilityQuery, check_output_count};
+use planner::feasibility::{
+    FeasibilityError, FeasibilityEvaluator, FeasibilityQuery, check_output_count,
+};
 use trial_sim::ArmModel;
 use world::view::{CROP_COLS, candidate_cells, cell_center_world};
 use world::{BasePose, Heatmap, PlaceConfig, RobotConfig, Scene, Side, base_collides};
@@ -49,7 +51,11 @@ impl ReachAnnulus {
                 let r = i as f64 * PROBE_STEP_M;
                 // Arm base at goal - r * (cos dir, sin dir): in front of the table for dir ~ +y.
                 let (ax, ay) = (goal.x - r * dir.cos(), goal.y - r * dir.sin());
-                let base = BasePose { x_m: ax - mx, y_m: ay - my, yaw_rad: yaw };
+                let base = BasePose {
+                    x_m: ax - mx,
+                    y_m: ay - my,
+                    yaw_rad: yaw,
+                };
                 if arm.place(place, base, goal, &[]).is_ok() {
                     let a = found.get_or_insert(ReachAnnulus { min_m: r, max_m: r });
                     a.min_m = a.min_m.min(r);
@@ -72,7 +78,10 @@ impl ReachAnnulus {
 fn mount_offset_world(place: &PlaceConfig, yaw_rad: f64) -> (f64, f64) {
     let (s, c) = yaw_rad.sin_cos();
     let m = &place.mount;
-    (c * m.forward_m - s * m.lateral_m, s * m.forward_m + c * m.lateral_m)
+    (
+        c * m.forward_m - s * m.lateral_m,
+        s * m.forward_m + c * m.lateral_m,
+    )
 }
 
 /// The annulus for the last robot seen (recomputed when a query brings another arm setup).
@@ -87,7 +96,10 @@ impl AnnulusCache {
         let key = (place.clone(), goal_z_m.to_bits());
         if self.key.as_ref() != Some(&key) {
             self.annulus = ReachAnnulus::probe(place, goal_z_m);
-            log::debug!("reach annulus for goal height {goal_z_m} m: {:?}", self.annulus);
+            log::debug!(
+                "reach annulus for goal height {goal_z_m} m: {:?}",
+                self.annulus
+            );
             self.key = Some(key);
         }
         self.annulus
@@ -95,7 +107,13 @@ impl AnnulusCache {
 }
 
 /// Indicator of the binary heuristic at one realised base pose.
-fn annulus_and_free(scene: &Scene, robot: &RobotConfig, annulus: &ReachAnnulus, base: BasePose, target: [f64; 3]) -> bool {
+fn annulus_and_free(
+    scene: &Scene,
+    robot: &RobotConfig,
+    annulus: &ReachAnnulus,
+    base: BasePose,
+    target: [f64; 3],
+) -> bool {
     annulus.contains(&robot.place, base, target) && !base_collides(scene, robot, base)
 }
 
@@ -117,15 +135,25 @@ impl FeasibilityEvaluator for BinaryAnnulusEvaluator {
         "binary-annulus"
     }
 
-    fn evaluate(&mut self, queries: &[FeasibilityQuery<'_>], out: &mut [Heatmap]) -> Result<(), FeasibilityError> {
+    fn evaluate(
+        &mut self,
+        queries: &[FeasibilityQuery<'_>],
+        out: &mut [Heatmap],
+    ) -> Result<(), FeasibilityError> {
         check_output_count(queries, out)?;
         for (q, heat) in queries.iter().zip(out.iter_mut()) {
             *heat = Heatmap::zeros();
-            let Some(annulus) = self.cache.get(&q.robot.place, q.target[2]) else { continue };
+            let Some(annulus) = self.cache.get(&q.robot.place, q.target[2]) else {
+                continue;
+            };
             let yaw = q.side.facing_yaw_rad();
             for (r, c) in candidate_cells() {
                 let (x, y) = cell_center_world(q.target[0], q.side, r, c);
-                let base = BasePose { x_m: x, y_m: y, yaw_rad: yaw };
+                let base = BasePose {
+                    x_m: x,
+                    y_m: y,
+                    yaw_rad: yaw,
+                };
                 if annulus_and_free(q.scene, q.robot, &annulus, base, q.target) {
                     heat.values_mut()[r * CROP_COLS + c] = 1.0;
                 }
@@ -159,7 +187,10 @@ fn blur_stencil() -> Vec<(f64, f64, f64)> {
     let mut pts = Vec::with_capacity(BLUR_POINTS * BLUR_POINTS);
     for i in 0..BLUR_POINTS {
         for j in 0..BLUR_POINTS {
-            let (u, v) = (-BLUR_SPAN_SIGMA + i as f64 * step, -BLUR_SPAN_SIGMA + j as f64 * step);
+            let (u, v) = (
+                -BLUR_SPAN_SIGMA + i as f64 * step,
+                -BLUR_SPAN_SIGMA + j as f64 * step,
+            );
             pts.push((u, v, (-0.5 * (u * u + v * v)).exp()));
         }
     }
@@ -173,12 +204,18 @@ impl FeasibilityEvaluator for BlurredAnnulusEvaluator {
         "blurred-annulus"
     }
 
-    fn evaluate(&mut self, queries: &[FeasibilityQuery<'_>], out: &mut [Heatmap]) -> Result<(), FeasibilityError> {
+    fn evaluate(
+        &mut self,
+        queries: &[FeasibilityQuery<'_>],
+        out: &mut [Heatmap],
+    ) -> Result<(), FeasibilityError> {
         check_output_count(queries, out)?;
         let stencil = blur_stencil();
         for (q, heat) in queries.iter().zip(out.iter_mut()) {
             *heat = Heatmap::zeros();
-            let Some(annulus) = self.cache.get(&q.robot.place, q.target[2]) else { continue };
+            let Some(annulus) = self.cache.get(&q.robot.place, q.target[2]) else {
+                continue;
+            };
             let yaw = q.side.facing_yaw_rad();
             let sigma = q.robot.nav_noise_sigma_m;
             for (r, c) in candidate_cells() {
@@ -186,7 +223,11 @@ impl FeasibilityEvaluator for BlurredAnnulusEvaluator {
                 let value: f64 = stencil
                     .iter()
                     .filter(|(u, v, _)| {
-                        let base = BasePose { x_m: x + sigma * u, y_m: y + sigma * v, yaw_rad: yaw };
+                        let base = BasePose {
+                            x_m: x + sigma * u,
+                            y_m: y + sigma * v,
+                            yaw_rad: yaw,
+                        };
                         annulus_and_free(q.scene, q.robot, &annulus, base, q.target)
                     })
                     .map(|p| p.2)
@@ -209,7 +250,10 @@ pub struct OracleEvaluator {
 impl OracleEvaluator {
     /// An oracle running `trials_per_cell` trials per cell.
     pub fn new(trials_per_cell: u16, seed: u64) -> Self {
-        Self { trials_per_cell, seed }
+        Self {
+            trials_per_cell,
+            seed,
+        }
     }
 }
 
@@ -218,7 +262,11 @@ impl FeasibilityEvaluator for OracleEvaluator {
         "oracle"
     }
 
-    fn evaluate(&mut self, queries: &[FeasibilityQuery<'_>], out: &mut [Heatmap]) -> Result<(), FeasibilityError> {
+    fn evaluate(
+        &mut self,
+        queries: &[FeasibilityQuery<'_>],
+        out: &mut [Heatmap],
+    ) -> Result<(), FeasibilityError> {
         check_output_count(queries, out)?;
         if self.trials_per_cell == 0 {
             return Err(FeasibilityError::Evaluator {
@@ -227,8 +275,19 @@ impl FeasibilityEvaluator for OracleEvaluator {
             });
         }
         for (q, heat) in queries.iter().zip(out.iter_mut()) {
-            let seed = world::generate::mix_seed(self.seed, q.target[0].to_bits(), u64::from(q.side.sign() as u8));
-            *heat = trial_sim::ground_truth_heatmap(q.scene, q.robot, q.target, q.side, self.trials_per_cell, seed);
+            let seed = world::generate::mix_seed(
+                self.seed,
+                q.target[0].to_bits(),
+                u64::from(q.side.sign() as u8),
+            );
+            *heat = trial_sim::ground_truth_heatmap(
+                q.scene,
+                q.robot,
+                q.target,
+                q.side,
+                self.trials_per_cell,
+                seed,
+            );
         }
         Ok(())
     }

@@ -36,6 +36,28 @@ pub fn smp_expected_success(predicted: &Heatmap, truth: &Heatmap) -> f64 {
     if sp > 0.0 { spy / sp } else { 0.0 }
 }
 
+/// True success probability of a goal at the prediction's best cell (the "best-of-n goals"
+/// limit of Smp): mean true success fraction over the candidate cells that reach the predicted
+/// maximum (ties averaged, so a flat binary map is not credited for a lucky first cell); 0 when
+/// the prediction is 0 everywhere.
+pub fn argmax_success(predicted: &Heatmap, truth: &Heatmap) -> f64 {
+    let max = candidate_cells()
+        .map(|(r, c)| predicted.values()[r * CROP_COLS + c])
+        .fold(0.0f32, f32::max);
+    if max <= 0.0 {
+        return 0.0;
+    }
+    let (mut n, mut sum) = (0u32, 0.0f64);
+    for (r, c) in candidate_cells() {
+        let i = r * CROP_COLS + c;
+        if predicted.values()[i] == max {
+            n += 1;
+            sum += f64::from(truth.values()[i]);
+        }
+    }
+    sum / f64::from(n)
+}
+
 /// Running sums over many (prediction, truth) pairs; [`MetricsAccumulator::report`] gives the
 /// averages.
 #[derive(Clone, Debug, Default)]
@@ -51,6 +73,8 @@ pub struct MetricsAccumulator {
     f_pred: f64,
     f_true: f64,
     smp_success: f64,
+    argmax_success: f64,
+    argmax_success_true: f64,
 }
 
 impl MetricsAccumulator {
@@ -77,6 +101,8 @@ impl MetricsAccumulator {
         self.f_pred += f_pred;
         self.f_true += f_true;
         self.smp_success += smp_expected_success(predicted, truth);
+        self.argmax_success += argmax_success(predicted, truth);
+        self.argmax_success_true += argmax_success(truth, truth);
     }
 
     /// Averages so far (all zero before the first task).
@@ -99,6 +125,8 @@ impl MetricsAccumulator {
             f_mean_true: self.f_true / t,
             smp_success: self.smp_success / t,
             smp_success_true: self.f_true / t,
+            argmax_success: self.argmax_success / t,
+            argmax_success_true: self.argmax_success_true / t,
         }
     }
 }
@@ -127,22 +155,43 @@ pub struct QualityReport {
     pub f_mean_true: f64,
     /// Mean true success probability of the goal Smp draws from the prediction.
     pub smp_success: f64,
-    /// The same for goals drawn from the true heatmap (= mean F(y)): the best Smp can do.
+    /// The same for goals drawn from the true heatmap (= mean F(y)). Not an upper bound for
+    /// other heatmaps: drawing in proportion to the value also sends the robot to marginal cells,
+    /// which a map that is 1 only on a safe core avoids.
     pub smp_success_true: f64,
+    /// Mean true success of the goal at the prediction's maximum (ties averaged).
+    pub argmax_success: f64,
+    /// The same at the true heatmap's maximum (sampling noise of the truth makes it optimistic).
+    pub argmax_success_true: f64,
 }
 
 impl QualityReport {
-    /// `| name | MAE | Brier | ECE | |F_hat-F| | Smp success |` markdown row.
+    /// One markdown table row (see [`QualityReport::markdown_header`]).
     pub fn markdown_row(&self) -> String {
         format!(
-            "| {} | {:.4} | {:.4} | {:.4} | {:.4} | {:.3} (true heatmap: {:.3}) |",
-            self.evaluator, self.mae, self.brier, self.ece, self.f_abs_err, self.smp_success, self.smp_success_true
+            "| {} | {:.4} | {:.4} | {:.4} | {:.4} | {:.3} | {:.3} | {:.3} |",
+            self.evaluator,
+            self.mae,
+            self.brier,
+            self.ece,
+            self.f_abs_err,
+            self.f_mean_pred,
+            self.smp_success,
+            self.argmax_success
         )
     }
 
     /// Header of [`QualityReport::markdown_row`].
     pub fn markdown_header() -> &'static str {
-        "| evaluator | MAE | Brier | ECE | |F_hat - F| | expected success of Smp goal |\n|---|---|---|---|---|---|"
+        "| evaluator | MAE | Brier | ECE | \\|F_hat - F\\| | mean F_hat | success of Smp goal | success of argmax goal |\n|---|---|---|---|---|---|---|---|"
+    }
+
+    /// The row the true heatmaps themselves would get on the task-level columns.
+    pub fn markdown_truth_row(&self) -> String {
+        format!(
+            "| (true heatmap) | - | - | - | - | {:.3} | {:.3} | {:.3} |",
+            self.f_mean_true, self.smp_success_true, self.argmax_success_true
+        )
     }
 }
 

@@ -55,6 +55,7 @@ pub fn metric(report: &QualityReport, name: &str) -> Option<f64> {
         "ece" => report.ece,
         "f_abs_err" => report.f_abs_err,
         "smp_success" => report.smp_success,
+        "argmax_success" => report.argmax_success,
         _ => return None,
     })
 }
@@ -76,6 +77,8 @@ pub fn parse_model_card(card: &str) -> Result<Vec<Bound>, ThresholdError> {
         f_mean_true: 0.0,
         smp_success: 0.0,
         smp_success_true: 0.0,
+        argmax_success: 0.0,
+        argmax_success_true: 0.0,
     };
     for (i, raw) in card.lines().enumerate() {
         let line = raw.trim();
@@ -93,7 +96,10 @@ pub fn parse_model_card(card: &str) -> Result<Vec<Bound>, ThresholdError> {
         if line.is_empty() || line.starts_with('#') {
             continue;
         }
-        let bad = || ThresholdError::BadLine { line: i + 1, text: raw.to_owned() };
+        let bad = || ThresholdError::BadLine {
+            line: i + 1,
+            text: raw.to_owned(),
+        };
         let (name, at_most, rest) = if let Some((n, r)) = line.split_once("<=") {
             (n.trim(), true, r)
         } else if let Some((n, r)) = line.split_once(">=") {
@@ -106,9 +112,16 @@ pub fn parse_model_card(card: &str) -> Result<Vec<Bound>, ThresholdError> {
             return Err(bad());
         }
         if metric(&probe, name).is_none() {
-            return Err(ThresholdError::UnknownMetric { line: i + 1, metric: name.to_owned() });
+            return Err(ThresholdError::UnknownMetric {
+                line: i + 1,
+                metric: name.to_owned(),
+            });
         }
-        bounds.push(Bound { metric: name.to_owned(), at_most, limit });
+        bounds.push(Bound {
+            metric: name.to_owned(),
+            at_most,
+            limit,
+        });
     }
     if !seen_block {
         return Err(ThresholdError::NoBlock);
@@ -122,8 +135,19 @@ pub fn violations(report: &QualityReport, bounds: &[Bound]) -> Vec<String> {
         .iter()
         .filter_map(|b| {
             let v = metric(report, &b.metric)?;
-            let ok = if b.at_most { v <= b.limit } else { v >= b.limit };
-            (!ok).then(|| format!("{} = {v:.4} but the model card requires {} {}", b.metric, if b.at_most { "<=" } else { ">=" }, b.limit))
+            let ok = if b.at_most {
+                v <= b.limit
+            } else {
+                v >= b.limit
+            };
+            (!ok).then(|| {
+                format!(
+                    "{} = {v:.4} but the model card requires {} {}",
+                    b.metric,
+                    if b.at_most { "<=" } else { ">=" },
+                    b.limit
+                )
+            })
         })
         .collect()
 }
@@ -132,12 +156,21 @@ pub fn violations(report: &QualityReport, bounds: &[Bound]) -> Vec<String> {
 /// expected success), as readable lines: the issue requires the FCN to beat the binary heuristic
 /// on every one.
 pub fn not_better_than(candidate: &QualityReport, baseline: &QualityReport) -> Vec<String> {
-    let lower = [("mae", candidate.mae, baseline.mae), ("brier", candidate.brier, baseline.brier),
-        ("ece", candidate.ece, baseline.ece), ("f_abs_err", candidate.f_abs_err, baseline.f_abs_err)];
+    let lower = [
+        ("mae", candidate.mae, baseline.mae),
+        ("brier", candidate.brier, baseline.brier),
+        ("ece", candidate.ece, baseline.ece),
+        ("f_abs_err", candidate.f_abs_err, baseline.f_abs_err),
+    ];
     let mut out: Vec<String> = lower
         .iter()
         .filter(|(_, c, b)| c >= b)
-        .map(|(n, c, b)| format!("{n}: {} {c:.4} is not below {} {b:.4}", candidate.evaluator, baseline.evaluator))
+        .map(|(n, c, b)| {
+            format!(
+                "{n}: {} {c:.4} is not below {} {b:.4}",
+                candidate.evaluator, baseline.evaluator
+            )
+        })
         .collect();
     if candidate.smp_success <= baseline.smp_success {
         out.push(format!(
@@ -152,21 +185,35 @@ pub fn not_better_than(candidate: &QualityReport, baseline: &QualityReport) -> V
 mod tests {
     use super::*;
 
-    const CARD: &str = "# card\ntext\n```thresholds\nmae <= 0.1\n# comment\nsmp_success >= 0.5\n```\nmore\n";
+    const CARD: &str =
+        "# card\ntext\n```thresholds\nmae <= 0.1\n# comment\nsmp_success >= 0.5\n```\nmore\n";
 
     #[test]
     fn parses_the_block() {
         let b = parse_model_card(CARD).unwrap();
         assert_eq!(b.len(), 2);
-        assert_eq!(b[0], Bound { metric: "mae".into(), at_most: true, limit: 0.1 });
+        assert_eq!(
+            b[0],
+            Bound {
+                metric: "mae".into(),
+                at_most: true,
+                limit: 0.1
+            }
+        );
         assert!(!b[1].at_most);
     }
 
     #[test]
     fn reports_bad_cards() {
         assert_eq!(parse_model_card("no block"), Err(ThresholdError::NoBlock));
-        assert!(matches!(parse_model_card("```thresholds\nmae < 0.1\n```"), Err(ThresholdError::BadLine { line: 2, .. })));
-        assert!(matches!(parse_model_card("```thresholds\nmae <= x\n```"), Err(ThresholdError::BadLine { .. })));
+        assert!(matches!(
+            parse_model_card("```thresholds\nmae < 0.1\n```"),
+            Err(ThresholdError::BadLine { line: 2, .. })
+        ));
+        assert!(matches!(
+            parse_model_card("```thresholds\nmae <= x\n```"),
+            Err(ThresholdError::BadLine { .. })
+        ));
         assert!(matches!(
             parse_model_card("```thresholds\naccuracy >= 0.9\n```"),
             Err(ThresholdError::UnknownMetric { .. })
@@ -188,6 +235,8 @@ mod tests {
             f_mean_true: 0.0,
             smp_success: 0.7,
             smp_success_true: 0.8,
+            argmax_success: 0.9,
+            argmax_success_true: 0.95,
         };
         assert!(violations(&r, &bounds).is_empty());
         r.mae = 0.2;

@@ -375,7 +375,10 @@ impl SimRmp {
             .last_command_at
             .is_none_or(|t| self.time - t > self.config.loss_of_command_timeout);
         if lost && !self.command_lost {
-            info!("sim-rmp: no command for {:?}: ramping to zero", self.config.loss_of_command_timeout);
+            info!(
+                "sim-rmp: no command for {:?}: ramping to zero",
+                self.config.loss_of_command_timeout
+            );
             self.command_lost = true;
             self.stats.command_losses += 1;
         }
@@ -384,9 +387,7 @@ impl SimRmp {
         let (v_target, w_target) = if driving {
             (
                 self.command.0 * self.nvm(NvmFloat::MaxVelocityMps),
-                self.config.yaw_sign as f32
-                    * self.command.1
-                    * self.nvm(NvmFloat::MaxTurnRateRadps),
+                self.config.yaw_sign as f32 * self.command.1 * self.nvm(NvmFloat::MaxTurnRateRadps),
             )
         } else {
             (0.0, 0.0)
@@ -474,10 +475,15 @@ impl SimRmp {
             I::RightRearPosition => f(self.wheel_positions_m[2] as f32),
             I::LeftRearPosition => f(self.wheel_positions_m[3] as f32),
             I::LinearPosition => f(self.linear_position_m as f32),
-            I::FrontBaseBatt1Soc | I::FrontBaseBatt2Soc | I::RearBaseBatt1Soc
+            I::FrontBaseBatt1Soc
+            | I::FrontBaseBatt2Soc
+            | I::RearBaseBatt1Soc
             | I::RearBaseBatt2Soc => f(80.0),
-            I::FrontBaseBatt1Temp | I::FrontBaseBatt2Temp | I::RearBaseBatt1Temp
-            | I::RearBaseBatt2Temp | I::AuxBattTemp => f(25.0),
+            I::FrontBaseBatt1Temp
+            | I::FrontBaseBatt2Temp
+            | I::RearBaseBatt1Temp
+            | I::RearBaseBatt2Temp
+            | I::AuxBattTemp => f(25.0),
             I::VelocityTarget => f(self.command.0 * self.nvm(NvmFloat::MaxVelocityMps)),
             I::YawRateTarget => f(self.command.1 * self.nvm(NvmFloat::MaxTurnRateRadps)),
             I::AuxBattVoltage => f(12.8),

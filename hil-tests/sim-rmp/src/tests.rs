@@ -34,7 +34,10 @@ fn answers_every_command_with_a_default_feedback_set() {
     assert_eq!(set.get(FeedbackItem::SpSwBuildId), Some(SIM_BUILD_ID));
     assert_eq!(set.get_f32(FeedbackItem::VelocityLimit), Some(2.2352));
     // Config NONE is the documented probe: also answered.
-    assert!(sim.handle_frame(&config(ConfigCommand::None), 20 * MS).is_some());
+    assert!(
+        sim.handle_frame(&config(ConfigCommand::None), 20 * MS)
+            .is_some()
+    );
     // Other traffic (feedback of another base, unrelated ids) is ignored.
     let other = RawFrame::new(0x502, &[0; 8]).unwrap();
     assert!(sim.handle_frame(&other, 30 * MS).is_none());
@@ -57,7 +60,11 @@ fn standby_ignores_motion_and_tractor_follows_it_with_accel_limit() {
         sim.handle_frame(&motion(0.5, 0.0), t);
     }
     let expected = 3.923 * 0.09;
-    assert!((sim.velocity().0 - expected).abs() < 0.01, "{:?}", sim.velocity());
+    assert!(
+        (sim.velocity().0 - expected).abs() < 0.01,
+        "{:?}",
+        sim.velocity()
+    );
     for _ in 0..30 {
         t += 10 * MS;
         sim.handle_frame(&motion(0.5, 0.0), t);
@@ -165,7 +172,10 @@ fn feedback_bitmaps_and_forced_config_change_the_reply_layout() {
         .unwrap();
     assert_eq!(*forced.layout(), FeedbackLayout::ForcedConfig);
     assert_eq!(forced.get_f32(FeedbackItem::FramVelocityLimit), Some(1.5));
-    assert_eq!(forced.get(FeedbackItem::UserFeedbackBitmap1), Some(small.words()[0]));
+    assert_eq!(
+        forced.get(FeedbackItem::UserFeedbackBitmap1),
+        Some(small.words()[0])
+    );
     // Bitmap 4 has no items: refused and flagged.
     let set = sim
         .handle_frame(
@@ -201,7 +211,9 @@ fn turning_in_place_moves_wheels_opposite_and_respects_yaw_sign() {
         assert!(p.x_m.abs() < 1e-9 && p.y_m.abs() < 1e-9);
         assert!(p.yaw_rad * yaw_sign > 0.25, "{p:?}");
         let set = sim.feedback();
-        let reported = set.get_f32(FeedbackItem::DifferentialWheelVelocity).unwrap();
+        let reported = set
+            .get_f32(FeedbackItem::DifferentialWheelVelocity)
+            .unwrap();
         assert!((reported - 0.3).abs() < 1e-5, "protocol sense is preserved");
         let rf = set.get_f32(FeedbackItem::RightFrontPosition).unwrap() as f64;
         let lf = set.get_f32(FeedbackItem::LeftFrontPosition).unwrap() as f64;

@@ -90,19 +90,28 @@ fn mission(yaw_sign: f64) -> (Odometry, SimPose) {
 #[test]
 fn odometry_tracks_ground_truth_through_a_mission() {
     let (odo, truth) = mission(1.0);
-    assert!(truth.x_m.hypot(truth.y_m) > 0.6, "the base moved: {truth:?}");
+    assert!(
+        truth.x_m.hypot(truth.y_m) > 0.6,
+        "the base moved: {truth:?}"
+    );
     assert!(truth.yaw_rad > 1.0, "counter-clockwise turn: {truth:?}");
     // Odometry differences float32 integrators, so millimetres.
     assert!((odo.x_m - truth.x_m).abs() < 0.005, "{odo:?} vs {truth:?}");
     assert!((odo.y_m - truth.y_m).abs() < 0.005, "{odo:?} vs {truth:?}");
-    assert!((odo.yaw_rad - truth.yaw_rad).abs() < 0.005, "{odo:?} vs {truth:?}");
+    assert!(
+        (odo.yaw_rad - truth.yaw_rad).abs() < 0.005,
+        "{odo:?} vs {truth:?}"
+    );
     assert_eq!(odo.speed_mps, 0.0);
 }
 
 #[test]
 fn a_clockwise_positive_base_still_turns_the_way_the_caller_asked() {
     let (odo, truth) = mission(-1.0);
-    assert!(truth.yaw_rad > 1.0, "counter-clockwise in the world: {truth:?}");
+    assert!(
+        truth.yaw_rad > 1.0,
+        "counter-clockwise in the world: {truth:?}"
+    );
     assert!((odo.yaw_rad - truth.yaw_rad).abs() < 0.005);
 }
 
@@ -137,7 +146,9 @@ fn an_injected_kill_switch_stops_the_base_and_the_driver_names_it() {
     let mut rig = Rig::new(1.0);
     rig.enter_tractor();
     rig.drive(Twist::new(0.4, 0.0), Duration::from_secs(1));
-    rig.sim.sim_mut().set_fault(faults::KILL_SWITCH_ACTIVE, true);
+    rig.sim
+        .sim_mut()
+        .set_fault(faults::KILL_SWITCH_ACTIVE, true);
     let mut named = false;
     for _ in 0..50 {
         rig.driver.set_velocity(Twist::new(0.4, 0.0), rig.now);

@@ -159,7 +159,10 @@ fn driver_drives_the_simulated_base_process_over_the_virtual_bus() {
     let x = num(&status, "x_m");
     // 0.3 m/s for ~1.5 s minus the ramps: somewhere near 0.4 m.
     assert!(x > 0.25 && x < 0.6, "{status:?}");
-    assert!((odo.x_m - x).abs() < 0.01, "odometry {odo:?} vs sim {status:?}");
+    assert!(
+        (odo.x_m - x).abs() < 0.01,
+        "odometry {odo:?} vs sim {status:?}"
+    );
     assert!(odo.y_m.abs() < 0.01);
 
     // 3. The base stops answering: the driver reports it within its response timeout.
@@ -187,7 +190,10 @@ fn driver_drives_the_simulated_base_process_over_the_virtual_bus() {
             assert!(status.success(), "sim-rmp exit status {status}");
             break;
         }
-        assert!(Instant::now() < deadline, "sim-rmp did not exit after stdin closed");
+        assert!(
+            Instant::now() < deadline,
+            "sim-rmp did not exit after stdin closed"
+        );
         std::thread::sleep(Duration::from_millis(20));
     }
 }

@@ -15,6 +15,7 @@ import sys
 import time
 
 import dashboard_client
+import rtde_io
 import rtde_receive
 
 HOST = "127.0.0.1"
@@ -162,6 +163,20 @@ def _():
     d.brakeRelease()
     wait_until(lambda: r.getRobotMode() == 7, 3.0, "RUNNING on RTDE")
     assert d.robotmode() == "Robotmode: RUNNING"
+
+
+@check("RTDEIOInterface inputs (no start, many recipes) reach the controller")
+def _():
+    r = state["r"]
+    io = rtde_io.RTDEIOInterface(HOST)
+    assert io.setStandardDigitalOut(0, True)
+    wait_until(lambda: r.getActualDigitalOutputBits() & 1 == 1, 2.0, "digital output 0 on")
+    assert io.setStandardDigitalOut(0, False)
+    wait_until(lambda: r.getActualDigitalOutputBits() & 1 == 0, 2.0, "digital output 0 off")
+    assert io.setSpeedSlider(0.5)
+    wait_until(lambda: abs(r.getTargetSpeedFraction() - 0.5) < 1e-9, 2.0, "speed slider 0.5")
+    assert io.setSpeedSlider(1.0)
+    io.disconnect()  # sends P on a never-started connection and waits for the reply
 
 
 @check("clients disconnect cleanly")

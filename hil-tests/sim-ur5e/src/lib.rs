@@ -30,7 +30,8 @@ use std::sync::atomic::Ordering;
 use std::thread::JoinHandle;
 
 pub use robot::{RobotInit, Snapshot};
-use server::{PortKind, Shared, lock};
+pub use server::PortKind;
+use server::{Shared, lock};
 pub use ur5e::rtde::ControllerVersion;
 
 /// Simulator settings.
@@ -202,6 +203,11 @@ impl Ur5eSim {
     /// Fault injection: cuts every RTDE connection (a pulled cable as the client sees it).
     pub fn cut_rtde_connections(&self) -> usize {
         self.shared.cut(Some(PortKind::Rtde))
+    }
+
+    /// Fault injection: cuts every connection on one kind of port.
+    pub fn cut_connections(&self, kind: PortKind) -> usize {
+        self.shared.cut(Some(kind))
     }
 
     /// Fault injection: cuts every connection of every port.

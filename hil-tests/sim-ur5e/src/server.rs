@@ -317,15 +317,19 @@ fn rtde_stream(shared: &Shared, writer: &Mutex<TcpStream>, conn: &Mutex<RtdeConn
             continue;
         };
         seen = p.seq;
-        let recipe = {
+        let (recipe, protocol) = {
             let c = lock(conn);
             match (&c.output, c.started) {
-                (Some(r), true) if p.seq % r.divisor == 0 => r.clone(),
+                (Some(r), true) if p.seq % r.divisor == 0 => (r.clone(), c.protocol),
                 _ => continue,
             }
         };
         buf.clear();
-        buf.extend_from_slice(&[0, 0, PackageType::DataPackage as u8, recipe.id]);
+        buf.extend_from_slice(&[0, 0, PackageType::DataPackage as u8]);
+        // Protocol 1 data packages carry no recipe id.
+        if protocol >= 2 {
+            buf.push(recipe.id);
+        }
         {
             let ctl = lock(&shared.ctl);
             for f in &recipe.fields {
@@ -604,7 +608,8 @@ fn dashboard_connection(shared: &Shared, stream: TcpStream) -> io::Result<()> {
     let mut loaded: Option<String> = None;
     loop {
         line.clear();
-        if reader.read_line(&mut line)? == 0 {
+        // Bounded: a client cannot make the controller buffer without end.
+        if (&mut reader).take(4096).read_line(&mut line)? == 0 {
             return Ok(());
         }
         let command = line.trim_end_matches(['\n', '\r']).trim();
@@ -872,7 +877,8 @@ fn gripper_connection(shared: &Shared, stream: TcpStream) -> io::Result<()> {
     let mut line = String::new();
     loop {
         line.clear();
-        if reader.read_line(&mut line)? == 0 {
+        // Bounded: a client cannot make the controller buffer without end.
+        if (&mut reader).take(4096).read_line(&mut line)? == 0 {
             return Ok(());
         }
         let reply = lock(&shared.ctl).robot.gripper.handle(line.trim());

@@ -546,3 +546,22 @@ mod tests {
         assert!(parse_program("").is_err());
     }
 }
+
+#[cfg(test)]
+mod properties {
+    use super::*;
+    use proptest::prelude::*;
+
+    proptest! {
+        /// Script text from a client never panics the parser.
+        #[test]
+        fn parser_never_panics(text in "(def a\\(\\):\n)?( *[a-z_]{1,8}\\([-0-9.,\\[\\]p\" =a-z]{0,30}\\)\n){0,4}(end\n)?") {
+            let _ = parse_program(&text);
+        }
+
+        #[test]
+        fn parser_never_panics_on_any_string(text in "\\PC{0,200}") {
+            let _ = parse_program(&text);
+        }
+    }
+}

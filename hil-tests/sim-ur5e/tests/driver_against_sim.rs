@@ -6,7 +6,7 @@ use std::net::TcpStream;
 use std::thread;
 use std::time::{Duration, Instant};
 
-use sim_ur5e::{RobotInit, SimConfig, Ur5eSim};
+use sim_ur5e::{PortKind, RobotInit, SimConfig, Ur5eSim};
 use ur5e::dashboard::{DashboardClient, ProgramState, RobotMode, SafetyMode};
 use ur5e::rtde::{DataPackage, RtdeClient, RtdeSetupError, RtdeTimeouts, RtdeType, RtdeValue};
 use ur5e::{ArmConfig, GripOutcome, SkillError, TcpPose, Ur5eArm};
@@ -504,4 +504,76 @@ fn the_simulator_runs_as_its_own_process() {
     arm.move_joints(goal, 1.0, 2.0, Duration::from_secs(10))
         .unwrap();
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn with_every_socket_cut_the_controller_watchdog_still_stops_the_arm() {
+    // No channel is left to send a stop: the skill says so, and the heartbeat watchdog in the
+    // motion program brings the arm to rest on its own.
+    let sim = sim_with(|_| {});
+    let mut arm = Ur5eArm::connect(arm_config(&sim)).unwrap();
+    let goal = [3.0, -H, H, -H, -H, 0.0];
+    let result = thread::scope(|s| {
+        s.spawn(|| {
+            wait_for("motion", Duration::from_secs(5), || {
+                sim.snapshot().qd[0].abs() > 0.3
+            });
+            // The stop channels go first, so the RTDE loss finds nothing left to send on.
+            sim.cut_connections(PortKind::Secondary);
+            sim.cut_connections(PortKind::Dashboard);
+            thread::sleep(Duration::from_millis(50));
+            sim.cut_all_connections();
+        });
+        arm.move_joints(goal, 1.0, 2.0, Duration::from_secs(20))
+    });
+    assert!(
+        matches!(
+            result,
+            Err(SkillError::ConnectionLost {
+                stop_sent: false,
+                ..
+            })
+        ),
+        "{result:?}"
+    );
+    wait_for("watchdog stop", Duration::from_secs(5), || {
+        let s = sim.snapshot();
+        s.runtime_state == 1 && s.qd.iter().all(|v| v.abs() < 1e-9)
+    });
+    assert!(sim.snapshot().q[0] < 2.9, "stopped short of the goal");
+}
+
+/// Raw protocol-1 exchange (URCL falls back to it): no frequency in `O`, no recipe id in the
+/// `O` reply or in data packages. Written with literal bytes, independent of the client.
+#[test]
+fn protocol_version_1_is_served_in_its_own_layout() {
+    let sim = sim_with(|_| {});
+    let mut s = TcpStream::connect(sim.ports().rtde).unwrap();
+    s.set_read_timeout(Some(Duration::from_secs(2))).unwrap();
+    let read = |s: &mut TcpStream| {
+        let mut h = [0u8; 3];
+        s.read_exact(&mut h).unwrap();
+        let mut p = vec![0u8; u16::from_be_bytes([h[0], h[1]]) as usize - 3];
+        s.read_exact(&mut p).unwrap();
+        (h[2], p)
+    };
+    s.write_all(&[0, 5, b'V', 0, 1]).unwrap();
+    assert_eq!(read(&mut s), (b'V', vec![1]));
+    s.write_all(&[0, 3 + 9, b'O']).unwrap();
+    s.write_all(b"timestamp").unwrap();
+    assert_eq!(read(&mut s), (b'O', b"DOUBLE".to_vec()));
+    s.write_all(&[0, 3, b'S']).unwrap();
+    assert_eq!(read(&mut s), (b'S', vec![1]));
+    let (ty, payload) = read(&mut s);
+    assert_eq!(ty, b'U');
+    assert_eq!(
+        payload.len(),
+        8,
+        "v1 data package: the double only, no recipe id"
+    );
+    // An unknown protocol version is refused.
+    let mut s2 = TcpStream::connect(sim.ports().rtde).unwrap();
+    s2.set_read_timeout(Some(Duration::from_secs(2))).unwrap();
+    s2.write_all(&[0, 5, b'V', 0, 9]).unwrap();
+    assert_eq!(read(&mut s2), (b'V', vec![0]));
 }

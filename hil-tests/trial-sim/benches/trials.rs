@@ -19,7 +19,9 @@ fn bench_trials(c: &mut Criterion) {
         let commanded = cell_center_world(target[0], Side::Near, row, 31);
         let mut sim = TrialSimulator::new(&scene, &robot);
         let mut rng = ChaCha8Rng::seed_from_u64(1);
-        group.bench_function(name, |b| b.iter(|| sim.run(target, Side::Near, commanded, &mut rng)));
+        group.bench_function(name, |b| {
+            b.iter(|| sim.run(target, Side::Near, commanded, &mut rng))
+        });
     }
     group.finish();
 
@@ -32,7 +34,11 @@ fn bench_trials(c: &mut Criterion) {
 
     let mut group = c.benchmark_group("datagen");
     group.sample_size(10);
-    let cfg = DatagenConfig { n_envs: 2, targets_per_env: 5, ..DatagenConfig::default() };
+    let cfg = DatagenConfig {
+        n_envs: 2,
+        targets_per_env: 5,
+        ..DatagenConfig::default()
+    };
     group.throughput(Throughput::Elements(10 * 5 * 192));
     group.bench_function("simulate_10_tasks_parallel", |b| {
         b.iter(|| simulate(&cfg, &NoProgress, false).map(|d| d.summary.successes))

@@ -16,7 +16,10 @@ use npyz::WriterBuilder;
 use rayon::prelude::*;
 use serde::Serialize;
 use world::generate::{mix_seed, training_scenes};
-use world::view::{CANDIDATE_COLS, CANDIDATE_ROWS, CELL_SIZE_M, CROP_CELLS, CROP_COLS, CROP_ROWS, Side, in_candidate_area, render_crop};
+use world::view::{
+    CANDIDATE_COLS, CANDIDATE_ROWS, CELL_SIZE_M, CROP_CELLS, CROP_COLS, CROP_ROWS, Side,
+    in_candidate_area, render_crop,
+};
 use world::{RobotConfig, Scene, SceneError};
 
 use crate::trial::{CellCounts, HeatmapArea, TrialResult, TrialSimulator, simulate_cells};
@@ -238,14 +241,23 @@ impl DatagenConfig {
     /// Checks the settings.
     pub fn validate(&self) -> Result<(), DatagenError> {
         if self.n_envs == 0 || self.targets_per_env == 0 {
-            return Err(DatagenError::InvalidConfig("need at least one environment and one target".into()));
+            return Err(DatagenError::InvalidConfig(
+                "need at least one environment and one target".into(),
+            ));
         }
         if self.trials_per_cell == 0 {
-            return Err(DatagenError::InvalidConfig("trials_per_cell must be at least 1".into()));
+            return Err(DatagenError::InvalidConfig(
+                "trials_per_cell must be at least 1".into(),
+            ));
         }
-        let tasks = self.n_envs.saturating_mul(self.targets_per_env).saturating_mul(self.sides.sides().len());
+        let tasks = self
+            .n_envs
+            .saturating_mul(self.targets_per_env)
+            .saturating_mul(self.sides.sides().len());
         if tasks > i32::MAX as usize {
-            return Err(DatagenError::InvalidConfig(format!("{tasks} tasks do not fit the int32 scene column")));
+            return Err(DatagenError::InvalidConfig(format!(
+                "{tasks} tasks do not fit the int32 scene column"
+            )));
         }
         self.robot.validate().map_err(DatagenError::InvalidRobot)
     }
@@ -275,7 +287,11 @@ impl DatagenConfig {
 
 /// Simulates the dataset in memory (parallel over tasks with rayon). Deterministic for the
 /// settings: thread count and scheduling do not change a single trial.
-pub fn simulate(cfg: &DatagenConfig, progress: &dyn Progress, keep_records: bool) -> Result<Dataset, DatagenError> {
+pub fn simulate(
+    cfg: &DatagenConfig,
+    progress: &dyn Progress,
+    keep_records: bool,
+) -> Result<Dataset, DatagenError> {
     cfg.validate()?;
     let (scenes, tasks) = cfg.tasks();
     progress.begin(tasks.len() as u64);
@@ -312,19 +328,31 @@ pub fn simulate(cfg: &DatagenConfig, progress: &dyn Progress, keep_records: bool
             );
             let crop = render_crop(scene, task.target[0], task.side);
             progress.task_done();
-            TaskData { task: *task, crop, counts, records }
+            TaskData {
+                task: *task,
+                crop,
+                counts,
+                records,
+            }
         })
         .collect();
     let simulate_s = started.elapsed().as_secs_f64();
     progress.end();
     let summary = summarise(&data, cfg.trials_per_cell, simulate_s);
-    Ok(Dataset { scenes, tasks: data, summary })
+    Ok(Dataset {
+        scenes,
+        tasks: data,
+        summary,
+    })
 }
 
 const CANDIDATE_CELLS_USIZE: usize = world::view::CANDIDATE_CELLS;
 
 /// Simulates the dataset and writes the output folder; returns its statistics.
-pub fn generate(cfg: &DatagenConfig, progress: &dyn Progress) -> Result<DatasetSummary, DatagenError> {
+pub fn generate(
+    cfg: &DatagenConfig,
+    progress: &dyn Progress,
+) -> Result<DatasetSummary, DatagenError> {
     let dataset = simulate(cfg, progress, cfg.write_trials_csv)?;
     write_dataset(&dataset, cfg)?;
     Ok(dataset.summary)
@@ -347,7 +375,10 @@ fn summarise(data: &[TaskData], trials_per_cell: u16, simulate_s: f64) -> Datase
         for row in 0..CROP_ROWS {
             for col in 0..CROP_COLS {
                 let i = row * CROP_COLS + col;
-                let (s, n) = (u64::from(task.counts.successes[i]), u64::from(task.counts.trials[i]));
+                let (s, n) = (
+                    u64::from(task.counts.successes[i]),
+                    u64::from(task.counts.trials[i]),
+                );
                 if n == 0 {
                     continue;
                 }
@@ -380,7 +411,11 @@ fn summarise(data: &[TaskData], trials_per_cell: u16, simulate_s: f64) -> Datase
         success_rate: ratio(successes, trials),
         results: result_map,
         successes_per_cell_histogram: histogram,
-        mean_best_cell: if data.is_empty() { 0.0 } else { best_sum / data.len() as f64 },
+        mean_best_cell: if data.is_empty() {
+            0.0
+        } else {
+            best_sum / data.len() as f64
+        },
         tasks_without_feasible_cell: without_feasible,
         success_rate_by_row: CANDIDATE_ROWS
             .map(|row| RowRate {
@@ -390,12 +425,19 @@ fn summarise(data: &[TaskData], trials_per_cell: u16, simulate_s: f64) -> Datase
             })
             .collect(),
         simulate_s,
-        trials_per_s: if simulate_s > 0.0 { trials as f64 / simulate_s } else { 0.0 },
+        trials_per_s: if simulate_s > 0.0 {
+            trials as f64 / simulate_s
+        } else {
+            0.0
+        },
     }
 }
 
 fn io_err(path: &Path) -> impl FnOnce(std::io::Error) -> DatagenError + '_ {
-    move |source| DatagenError::Write { path: path.to_owned(), source }
+    move |source| DatagenError::Write {
+        path: path.to_owned(),
+        source,
+    }
 }
 
 /// Writes a simulated dataset into `cfg.out_dir`.
@@ -403,7 +445,9 @@ pub fn write_dataset(dataset: &Dataset, cfg: &DatagenConfig) -> Result<(), Datag
     let out = &cfg.out_dir;
     let scenes_dir = out.join("scenes");
     std::fs::create_dir_all(&scenes_dir).map_err(io_err(&scenes_dir))?;
-    let scene_files: Vec<String> = (0..dataset.scenes.len()).map(|i| format!("scenes/scene_{i:03}.toml")).collect();
+    let scene_files: Vec<String> = (0..dataset.scenes.len())
+        .map(|i| format!("scenes/scene_{i:03}.toml"))
+        .collect();
     for (scene, file) in dataset.scenes.iter().zip(&scene_files) {
         scene.save(out.join(file))?;
     }
@@ -422,43 +466,95 @@ fn write_npz(dataset: &Dataset, path: &Path) -> Result<(), DatagenError> {
     let write = || -> std::io::Result<()> {
         let mut npz = npyz::npz::NpzWriter::create(path)?;
         {
-            let mut w = npz.array::<u8>("images", Default::default())?.default_dtype().shape(&crop_shape).begin_nd()?;
+            let mut w = npz
+                .array::<u8>("images", Default::default())?
+                .default_dtype()
+                .shape(&crop_shape)
+                .begin_nd()?;
             w.extend(tasks.iter().flat_map(|t| t.crop.iter().copied()))?;
             w.finish()?;
         }
         {
-            let mut w = npz.array::<f32>("labels", Default::default())?.default_dtype().shape(&crop_shape).begin_nd()?;
-            w.extend(tasks.iter().flat_map(|t| t.counts.heatmap().values().to_vec()))?;
+            let mut w = npz
+                .array::<f32>("labels", Default::default())?
+                .default_dtype()
+                .shape(&crop_shape)
+                .begin_nd()?;
+            w.extend(
+                tasks
+                    .iter()
+                    .flat_map(|t| t.counts.heatmap().values().to_vec()),
+            )?;
             w.finish()?;
         }
         {
-            let mut w = npz.array::<u8>("mask", Default::default())?.default_dtype().shape(&crop_shape).begin_nd()?;
-            w.extend(tasks.iter().flat_map(|t| t.counts.trials.iter().map(|&n| u8::from(n > 0))))?;
+            let mut w = npz
+                .array::<u8>("mask", Default::default())?
+                .default_dtype()
+                .shape(&crop_shape)
+                .begin_nd()?;
+            w.extend(
+                tasks
+                    .iter()
+                    .flat_map(|t| t.counts.trials.iter().map(|&n| u8::from(n > 0))),
+            )?;
             w.finish()?;
         }
         {
-            let mut w = npz.array::<u16>("successes", Default::default())?.default_dtype().shape(&crop_shape).begin_nd()?;
-            w.extend(tasks.iter().flat_map(|t| t.counts.successes.iter().copied()))?;
+            let mut w = npz
+                .array::<u16>("successes", Default::default())?
+                .default_dtype()
+                .shape(&crop_shape)
+                .begin_nd()?;
+            w.extend(
+                tasks
+                    .iter()
+                    .flat_map(|t| t.counts.successes.iter().copied()),
+            )?;
             w.finish()?;
         }
         {
-            let mut w = npz.array::<u16>("trials_per_cell", Default::default())?.default_dtype().shape(&[n]).begin_nd()?;
-            w.extend(tasks.iter().map(|t| t.counts.trials.iter().copied().max().unwrap_or(0)))?;
+            let mut w = npz
+                .array::<u16>("trials_per_cell", Default::default())?
+                .default_dtype()
+                .shape(&[n])
+                .begin_nd()?;
+            w.extend(
+                tasks
+                    .iter()
+                    .map(|t| t.counts.trials.iter().copied().max().unwrap_or(0)),
+            )?;
             w.finish()?;
         }
         {
-            let mut w = npz.array::<f64>("targets", Default::default())?.default_dtype().shape(&[n, 3]).begin_nd()?;
+            let mut w = npz
+                .array::<f64>("targets", Default::default())?
+                .default_dtype()
+                .shape(&[n, 3])
+                .begin_nd()?;
             w.extend(tasks.iter().flat_map(|t| t.task.target))?;
             w.finish()?;
         }
         {
-            let mut w = npz.array::<i32>("scene", Default::default())?.default_dtype().shape(&[n]).begin_nd()?;
+            let mut w = npz
+                .array::<i32>("scene", Default::default())?
+                .default_dtype()
+                .shape(&[n])
+                .begin_nd()?;
             // validate() bounds the task count by i32::MAX, and scenes <= tasks.
-            w.extend(tasks.iter().map(|t| i32::try_from(t.task.scene).unwrap_or(i32::MAX)))?;
+            w.extend(
+                tasks
+                    .iter()
+                    .map(|t| i32::try_from(t.task.scene).unwrap_or(i32::MAX)),
+            )?;
             w.finish()?;
         }
         {
-            let mut w = npz.array::<i8>("side", Default::default())?.default_dtype().shape(&[n]).begin_nd()?;
+            let mut w = npz
+                .array::<i8>("side", Default::default())?
+                .default_dtype()
+                .shape(&[n])
+                .begin_nd()?;
             w.extend(tasks.iter().map(|t| t.task.side.sign()))?;
             w.finish()?;
         }
@@ -470,7 +566,10 @@ fn write_npz(dataset: &Dataset, path: &Path) -> Result<(), DatagenError> {
 fn write_trials_csv(dataset: &Dataset, path: &Path) -> Result<(), DatagenError> {
     let write = || -> std::io::Result<()> {
         let mut w = BufWriter::with_capacity(1 << 20, File::create(path)?);
-        writeln!(w, "task,scene,target_x_m,side,row,col,trial,commanded_x_m,commanded_y_m,realised_x_m,realised_y_m,result")?;
+        writeln!(
+            w,
+            "task,scene,target_x_m,side,row,col,trial,commanded_x_m,commanded_y_m,realised_x_m,realised_y_m,result"
+        )?;
         for task in &dataset.tasks {
             let t = &task.task;
             for r in &task.records {
@@ -541,14 +640,34 @@ struct TaskInfo<'a> {
     seed: u64,
 }
 
-fn write_manifest(dataset: &Dataset, cfg: &DatagenConfig, scene_files: &[String], path: &Path) -> Result<(), DatagenError> {
+fn write_manifest(
+    dataset: &Dataset,
+    cfg: &DatagenConfig,
+    scene_files: &[String],
+    path: &Path,
+) -> Result<(), DatagenError> {
     let arrays = BTreeMap::from([
-        ("images", "uint8 [N, 32, 64]: grayscale crop (near crop; far crops rotated 180 degrees)"),
-        ("labels", "float32 [N, 32, 64]: success fraction per cell, 0 outside the candidate area"),
+        (
+            "images",
+            "uint8 [N, 32, 64]: grayscale crop (near crop; far crops rotated 180 degrees)",
+        ),
+        (
+            "labels",
+            "float32 [N, 32, 64]: success fraction per cell, 0 outside the candidate area",
+        ),
         ("mask", "uint8 [N, 32, 64]: 1 on labelled (candidate) cells"),
-        ("successes", "uint16 [N, 32, 64]: successful trials per cell"),
-        ("trials_per_cell", "uint16 [N]: trials run at each labelled cell"),
-        ("targets", "float64 [N, 3]: object goal (x, y, z) in the world frame, m"),
+        (
+            "successes",
+            "uint16 [N, 32, 64]: successful trials per cell",
+        ),
+        (
+            "trials_per_cell",
+            "uint16 [N]: trials run at each labelled cell",
+        ),
+        (
+            "targets",
+            "float64 [N, 3]: object goal (x, y, z) in the world frame, m",
+        ),
         ("scene", "int32 [N]: index of scenes/scene_NNN.toml"),
         ("side", "int8 [N]: +1 near side, -1 far side"),
     ]);
@@ -606,5 +725,8 @@ pub fn is_labelled(row: usize, col: usize) -> bool {
 /// Sets the number of worker threads of the global pool used by [`simulate`]; must run
 /// before the first parallel work.
 pub fn set_worker_threads(threads: usize) -> Result<(), String> {
-    rayon::ThreadPoolBuilder::new().num_threads(threads.max(1)).build_global().map_err(|e| e.to_string())
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(threads.max(1))
+        .build_global()
+        .map_err(|e| e.to_string())
 }

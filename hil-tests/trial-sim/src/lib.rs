@@ -21,6 +21,7 @@ pub mod datagen;
 pub mod trial;
 
 pub use trial::{
-    ArmModel, CellCounts, HeatmapArea, TrialOutcome, TrialResult, TrialSimulator, Ur5eArm, cell_rng, ground_truth_heatmap,
-    ground_truth_heatmap_in, ground_truth_heatmaps, run_trial, simulate_cells, task_feasibility,
+    ArmModel, CellCounts, HeatmapArea, TrialOutcome, TrialResult, TrialSimulator, Ur5eArm,
+    cell_rng, ground_truth_heatmap, ground_truth_heatmap_in, ground_truth_heatmaps, run_trial,
+    simulate_cells, task_feasibility,
 };

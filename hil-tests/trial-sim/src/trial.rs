@@ -77,7 +77,13 @@ pub struct TrialOutcome {
 /// default is [`Ur5eArm`]; tests and what-if studies plug in others.
 pub trait ArmModel: Sync {
     /// `Ok(())` when a collision-free placing configuration exists.
-    fn place(&self, place: &PlaceConfig, base: BasePose, goal: Point3<f64>, obstacles: &[ObstacleBox]) -> Result<(), PlaceFailure>;
+    fn place(
+        &self,
+        place: &PlaceConfig,
+        base: BasePose,
+        goal: Point3<f64>,
+        obstacles: &[ObstacleBox],
+    ) -> Result<(), PlaceFailure>;
 }
 
 /// The UR5e of ur5e-kin: closed-form IK, joint limits, collision with boxes.
@@ -85,7 +91,13 @@ pub trait ArmModel: Sync {
 pub struct Ur5eArm;
 
 impl ArmModel for Ur5eArm {
-    fn place(&self, place: &PlaceConfig, base: BasePose, goal: Point3<f64>, obstacles: &[ObstacleBox]) -> Result<(), PlaceFailure> {
+    fn place(
+        &self,
+        place: &PlaceConfig,
+        base: BasePose,
+        goal: Point3<f64>,
+        obstacles: &[ObstacleBox],
+    ) -> Result<(), PlaceFailure> {
         ur5e_kin::plan_place(place, base, goal, obstacles).map(|_| ())
     }
 }
@@ -108,16 +120,31 @@ impl<'a> TrialSimulator<'a, Ur5eArm> {
 impl<'a, A: ArmModel> TrialSimulator<'a, A> {
     /// A simulator with another arm model.
     pub fn with_arm(scene: &'a Scene, robot: &'a RobotConfig, arm: A) -> Self {
-        Self { scene, robot, arm, obstacles: Vec::with_capacity(16) }
+        Self {
+            scene,
+            robot,
+            arm,
+            obstacles: Vec::with_capacity(16),
+        }
     }
 
     /// One trial: base commanded to `commanded_xy` facing the table from `side`, object goal
     /// `target` (world, m). The realised position is commanded + N(0, sigma^2 I); yaw is exact.
-    pub fn run<R: Rng + ?Sized>(&mut self, target: [f64; 3], side: Side, commanded_xy: (f64, f64), rng: &mut R) -> TrialOutcome {
+    pub fn run<R: Rng + ?Sized>(
+        &mut self,
+        target: [f64; 3],
+        side: Side,
+        commanded_xy: (f64, f64),
+        rng: &mut R,
+    ) -> TrialOutcome {
         let sigma = self.robot.nav_noise_sigma_m;
         let dx: f64 = StandardNormal.sample(rng);
         let dy: f64 = StandardNormal.sample(rng);
-        let realised = BasePose { x_m: commanded_xy.0 + sigma * dx, y_m: commanded_xy.1 + sigma * dy, yaw_rad: side.facing_yaw_rad() };
+        let realised = BasePose {
+            x_m: commanded_xy.0 + sigma * dx,
+            y_m: commanded_xy.1 + sigma * dy,
+            yaw_rad: side.facing_yaw_rad(),
+        };
         let result = self.evaluate(target, realised);
         TrialOutcome { realised, result }
     }
@@ -128,9 +155,13 @@ impl<'a, A: ArmModel> TrialSimulator<'a, A> {
         if base_collides(self.scene, self.robot, base) {
             return TrialResult::BaseCollision;
         }
-        self.scene.obstacle_boxes_into(self.robot, base, &mut self.obstacles);
+        self.scene
+            .obstacle_boxes_into(self.robot, base, &mut self.obstacles);
         let goal = Point3::new(target[0], target[1], target[2]);
-        match self.arm.place(&self.robot.place, base, goal, &self.obstacles) {
+        match self
+            .arm
+            .place(&self.robot.place, base, goal, &self.obstacles)
+        {
             Ok(()) => TrialResult::Success,
             Err(failure) => failure.into(),
         }
@@ -187,8 +218,17 @@ impl CellCounts {
     /// Success fraction per cell (0 where no trials ran).
     pub fn heatmap(&self) -> Heatmap {
         let mut heatmap = Heatmap::zeros();
-        for ((v, &s), &n) in heatmap.values_mut().iter_mut().zip(&self.successes).zip(&self.trials) {
-            *v = if n > 0 { f32::from(s) / f32::from(n) } else { 0.0 };
+        for ((v, &s), &n) in heatmap
+            .values_mut()
+            .iter_mut()
+            .zip(&self.successes)
+            .zip(&self.trials)
+        {
+            *v = if n > 0 {
+                f32::from(s) / f32::from(n)
+            } else {
+                0.0
+            };
         }
         heatmap
     }
@@ -206,7 +246,10 @@ pub fn simulate_cells<A: ArmModel>(
     task_seed: u64,
     mut record: impl FnMut(usize, usize, u16, (f64, f64), &TrialOutcome),
 ) -> CellCounts {
-    let mut counts = CellCounts { successes: vec![0; CROP_ROWS * CROP_COLS], trials: vec![0; CROP_ROWS * CROP_COLS] };
+    let mut counts = CellCounts {
+        successes: vec![0; CROP_ROWS * CROP_COLS],
+        trials: vec![0; CROP_ROWS * CROP_COLS],
+    };
     for row in 0..CROP_ROWS {
         for col in 0..CROP_COLS {
             if !area.contains(row, col) {
@@ -232,8 +275,23 @@ pub fn simulate_cells<A: ArmModel>(
 /// The ground-truth heatmap of a target and side over the paper's candidate area: success
 /// fraction of `trials_per_cell` trials per cell, 0 outside the area. Deterministic for `seed`;
 /// cells are independent streams, so callers may parallelise over targets freely.
-pub fn ground_truth_heatmap(scene: &Scene, robot: &RobotConfig, target: [f64; 3], side: Side, trials_per_cell: u16, seed: u64) -> Heatmap {
-    ground_truth_heatmap_in(scene, robot, target, side, HeatmapArea::Candidate, trials_per_cell, seed)
+pub fn ground_truth_heatmap(
+    scene: &Scene,
+    robot: &RobotConfig,
+    target: [f64; 3],
+    side: Side,
+    trials_per_cell: u16,
+    seed: u64,
+) -> Heatmap {
+    ground_truth_heatmap_in(
+        scene,
+        robot,
+        target,
+        side,
+        HeatmapArea::Candidate,
+        trials_per_cell,
+        seed,
+    )
 }
 
 /// As [`ground_truth_heatmap`] over a chosen area.
@@ -247,7 +305,16 @@ pub fn ground_truth_heatmap_in(
     seed: u64,
 ) -> Heatmap {
     let mut sim = TrialSimulator::new(scene, robot);
-    simulate_cells(&mut sim, target, side, area, trials_per_cell, seed, |_, _, _, _, _| {}).heatmap()
+    simulate_cells(
+        &mut sim,
+        target,
+        side,
+        area,
+        trials_per_cell,
+        seed,
+        |_, _, _, _, _| {},
+    )
+    .heatmap()
 }
 
 /// Ground-truth heatmaps of several (target, side) pairs of one scene, in parallel (rayon).
@@ -264,7 +331,17 @@ pub fn ground_truth_heatmaps(
     pairs
         .par_iter()
         .enumerate()
-        .map(|(i, &(target, side))| ground_truth_heatmap_in(scene, robot, target, side, area, trials_per_cell, mix_seed(seed, i as u64, 0)))
+        .map(|(i, &(target, side))| {
+            ground_truth_heatmap_in(
+                scene,
+                robot,
+                target,
+                side,
+                area,
+                trials_per_cell,
+                mix_seed(seed, i as u64, 0),
+            )
+        })
         .collect()
 }
 

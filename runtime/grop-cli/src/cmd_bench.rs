@@ -1,9 +1,160 @@
-//! `grop bench`.
+//! `grop bench`: GROP decision latency on one core, p50 and p99, written to docs/.
+//!
+//! Cases (evaluation scenes, the real world rendering, FCN and navigation planner):
+//! - `grop-3`: one full GROP decision for 3 objects: 6 crops rendered and run through the FCN,
+//!   free cells marked, every navigation cost (19 A* legs), all 288 plans scored, argmax;
+//!   with the split into Psi (render + FCN), navigation costs and selection;
+//! - `exact-10`: 10 objects with the exact optimiser: the optimiser alone on the cost table, and
+//!   the full decision (20 crops, 381 A* legs, optimiser).
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use anyhow::Context;
+use planner::costs::{GridTravelTime, LegCache, MemoTravel};
+use planner::feasibility::{FcnEvaluator, FeasibilityEvaluator};
+use planner::methods::{MethodKind, Planner, PlannerConfig, SearchMode, TaskMotionPlanner};
+use planner::problem::TaskProblem;
+use planner::task::{PlanningTable, optimise};
+use world::nav::OccupancyGrid;
 
 /// Arguments of `grop bench`.
 #[derive(clap::Args, Debug)]
-pub struct Args {}
+pub struct Args {
+    /// FCN model file.
+    #[arg(long, default_value = "models/psi-fcn.onnx")]
+    pub model: PathBuf,
+    /// Measured iterations per case (after warm-up).
+    #[arg(long, default_value_t = 200)]
+    pub iterations: usize,
+    /// Markdown file for the results.
+    #[arg(long, default_value = "docs/planner-bench.md")]
+    pub out: PathBuf,
+    /// Seed of the scenes.
+    #[arg(long, default_value_t = 7)]
+    pub seed: u64,
+}
 
-pub fn run(_args: Args) -> anyhow::Result<()> {
-    anyhow::bail!("`grop bench` is not built yet")
+/// Latency samples of one case.
+struct Samples {
+    name: &'static str,
+    what: &'static str,
+    ms: Vec<f64>,
+}
+
+impl Samples {
+    fn pct(&self, p: f64) -> f64 {
+        let mut v = self.ms.clone();
+        v.sort_by(f64::total_cmp);
+        if v.is_empty() {
+            return f64::NAN;
+        }
+        let i = ((v.len() as f64 - 1.0) * p).round() as usize;
+        v[i.min(v.len() - 1)]
+    }
+}
+
+pub fn run(args: Args) -> anyhow::Result<()> {
+    anyhow::ensure!(args.iterations >= 10, "--iterations must be at least 10");
+    let robot = world::RobotConfig::default();
+    let mut fcn = FcnEvaluator::load(&args.model).with_context(|| format!("loading {}", args.model.display()))?;
+    let scenes: Vec<world::Scene> =
+        [15usize, 20, 25].iter().map(|&c| world::generate::evaluation_scene(args.seed, c, 30)).collect();
+    let grids: Vec<OccupancyGrid> = scenes.iter().map(|s| OccupancyGrid::from_scene(s, &robot)).collect();
+    let cfg = PlannerConfig::for_robot(&robot);
+    let warmup = 5;
+    let total = warmup + args.iterations;
+
+    let mut full3 = Samples { name: "grop-3", what: "full GROP decision, 3 objects (6 crops FCN + 19 A* legs + 288 plans)", ms: vec![] };
+    let mut psi3 = Samples { name: "grop-3/psi", what: "  of which: render 6 crops + FCN + free cells", ms: vec![] };
+    let mut nav3 = Samples { name: "grop-3/nav", what: "  of which: 19 A* navigation costs", ms: vec![] };
+    let mut sel3 = Samples { name: "grop-3/select", what: "  of which: Smp goals + 288 plans scored + argmax (costs cached)", ms: vec![] };
+    for k in 0..total {
+        let s = k % scenes.len();
+        let scene = &scenes[s];
+        let first = (k / scenes.len() * 3) % 27;
+        let targets: Vec<[f64; 3]> = scene.targets[first..first + 3].iter().map(|t| t.as_array()).collect();
+        let t0 = Instant::now();
+        let problem = TaskProblem::from_world(scene, &robot, &targets, &mut fcn as &mut dyn FeasibilityEvaluator)?;
+        let t1 = Instant::now();
+        let mut travel = MemoTravel::new(GridTravelTime { grid: &grids[s], speed_mps: robot.speed_mps });
+        let planned = Planner::new(MethodKind::Grop, cfg).plan(&problem, &mut travel, k as u64)?;
+        let t2 = Instant::now();
+        // The same decision again with every leg already known: selection alone.
+        let goals_xy: Vec<(f64, f64)> = planned.goals.iter().map(|g| g.xy).collect();
+        let mut cache = LegCache::new(&problem, &goals_xy, cfg.no_path_cost_s);
+        let mut table = PlanningTable::zeros(3);
+        let mut grid_only = GridTravelTime { grid: &grids[s], speed_mps: robot.speed_mps };
+        let t3 = Instant::now();
+        cache.fill_table(&mut table, &mut grid_only);
+        let t4 = Instant::now();
+        // Every leg is now in the memo: this decision is Smp + 288 plans + argmax alone.
+        let t5 = Instant::now();
+        let again = Planner::new(MethodKind::Grop, cfg).plan(&problem, &mut travel, k as u64)?;
+        let t6 = Instant::now();
+        anyhow::ensure!(again.plan == planned.plan, "cached decision differs from the full one");
+        if k >= warmup {
+            full3.ms.push((t2 - t0).as_secs_f64() * 1e3);
+            psi3.ms.push((t1 - t0).as_secs_f64() * 1e3);
+            nav3.ms.push((t4 - t3).as_secs_f64() * 1e3);
+            sel3.ms.push((t6 - t5).as_secs_f64() * 1e3);
+        }
+    }
+
+    let mut opt10 = Samples { name: "exact-10/optimiser", what: "exact optimiser alone, 10 objects (sum), table given", ms: vec![] };
+    let mut opt10p = Samples { name: "exact-10/optimiser-product", what: "exact optimiser alone, 10 objects (product), table given", ms: vec![] };
+    let mut full10 = Samples { name: "exact-10", what: "full decision, 10 objects (20 crops FCN + 381 A* legs + optimiser)", ms: vec![] };
+    let full10_iters = (args.iterations / 10).max(10);
+    for k in 0..warmup + full10_iters {
+        let s = k % scenes.len();
+        let scene = &scenes[s];
+        let first = (k * 10) % 20;
+        let targets: Vec<[f64; 3]> = scene.targets[first..first + 10].iter().map(|t| t.as_array()).collect();
+        let t0 = Instant::now();
+        let problem = TaskProblem::from_world(scene, &robot, &targets, &mut fcn as &mut dyn FeasibilityEvaluator)?;
+        let mut travel = GridTravelTime { grid: &grids[s], speed_mps: robot.speed_mps };
+        let exact = PlannerConfig { search: SearchMode::Exact, ..cfg };
+        let planned = Planner::new(MethodKind::Grop, exact).plan(&problem, &mut travel, k as u64)?;
+        let t1 = Instant::now();
+        if k >= warmup {
+            full10.ms.push((t1 - t0).as_secs_f64() * 1e3);
+        }
+        // Optimiser alone on this task's real table, repeated.
+        let goals_xy: Vec<(f64, f64)> = planned.goals.iter().map(|g| g.xy).collect();
+        let mut cache = LegCache::new(&problem, &goals_xy, cfg.no_path_cost_s);
+        let mut table = PlanningTable::zeros(10);
+        cache.fill_table(&mut table, &mut travel);
+        for (i, r) in planned.locations.iter().enumerate() {
+            table.feasibility[i] = r.feasibility;
+        }
+        if k >= warmup {
+            for _ in 0..10 {
+                let t = Instant::now();
+                let best = optimise(&table, cfg.success_bonus_r, planner::methods::Aggregation::Sum)?;
+                opt10.ms.push(t.elapsed().as_secs_f64() * 1e3);
+                anyhow::ensure!(best.plan == planned.plan, "optimiser disagrees with the planner");
+                let t = Instant::now();
+                optimise(&table, cfg.success_bonus_r, planner::methods::Aggregation::Product)?;
+                opt10p.ms.push(t.elapsed().as_secs_f64() * 1e3);
+            }
+        }
+    }
+
+    let cases = [full3, psi3, nav3, sel3, opt10, opt10p, full10];
+    let mut md = String::from(
+        "# GROP decision latency\n\n<!-- written by `grop bench` -->\n\nOne core, release build, evaluation scenes \
+         (15/20/25 chairs), the committed FCN `models/psi-fcn.onnx`, the world's Theta* navigation planner on the 0.1 m grid. \
+         Reproduce: `cargo run --release -p grop-cli -- bench`.\n\n| case | what | n | p50 (ms) | p99 (ms) |\n|---|---|---|---|---|\n",
+    );
+    for c in &cases {
+        md.push_str(&format!("| {} | {} | {} | {:.3} | {:.3} |\n", c.name, c.what, c.ms.len(), c.pct(0.5), c.pct(0.99)));
+        println!("{:<28} p50 {:8.3} ms  p99 {:8.3} ms  (n = {})", c.name, c.pct(0.5), c.pct(0.99), c.ms.len());
+    }
+    md.push_str(&format!("\nMachine: {} logical CPUs available; the planner itself runs on one thread.\n", std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1)));
+    if let Some(dir) = args.out.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    }
+    std::fs::write(&args.out, md).with_context(|| format!("writing {}", args.out.display()))?;
+    println!("wrote {}", args.out.display());
+    Ok(())
 }

@@ -75,24 +75,44 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     let bar = indicatif::ProgressBar::new(0);
     bar.set_style(
-        indicatif::ProgressStyle::with_template("{spinner} tasks {pos}/{len} [{bar:40}] {elapsed_precise} eta {eta}")
-            .context("progress bar template")?,
+        indicatif::ProgressStyle::with_template(
+            "{spinner} tasks {pos}/{len} [{bar:40}] {elapsed_precise} eta {eta}",
+        )
+        .context("progress bar template")?,
     );
     let started = std::time::Instant::now();
-    let summary = generate(&cfg, &bar).with_context(|| format!("generating the dataset into {}", args.out.display()))?;
+    let summary = generate(&cfg, &bar)
+        .with_context(|| format!("generating the dataset into {}", args.out.display()))?;
     let total_s = started.elapsed().as_secs_f64();
     println!(
         "{} tasks, {} trials: success rate {:.3} (authors: ~0.31), mean best cell {:.3}, {} tasks without a feasible cell",
-        summary.tasks, summary.trials, summary.success_rate, summary.mean_best_cell, summary.tasks_without_feasible_cell
+        summary.tasks,
+        summary.trials,
+        summary.success_rate,
+        summary.mean_best_cell,
+        summary.tasks_without_feasible_cell
     );
-    let results: Vec<String> = summary.results.iter().map(|(k, v)| format!("{k} {v}")).collect();
+    let results: Vec<String> = summary
+        .results
+        .iter()
+        .map(|(k, v)| format!("{k} {v}"))
+        .collect();
     if !results.is_empty() {
         println!("results: {}", results.join(", "));
     }
-    println!("successes per cell (0..={}): {:?}", cfg.trials_per_cell, summary.successes_per_cell_histogram);
-    let rows: Vec<String> =
-        summary.success_rate_by_row.iter().map(|r| format!("{:.2} m: {:.2}", r.distance_m, r.success_rate)).collect();
-    println!("success by distance from the table's centre line: {}", rows.join(", "));
+    println!(
+        "successes per cell (0..={}): {:?}",
+        cfg.trials_per_cell, summary.successes_per_cell_histogram
+    );
+    let rows: Vec<String> = summary
+        .success_rate_by_row
+        .iter()
+        .map(|r| format!("{:.2} m: {:.2}", r.distance_m, r.success_rate))
+        .collect();
+    println!(
+        "success by distance from the table's centre line: {}",
+        rows.join(", ")
+    );
     println!(
         "simulated in {:.2} s ({:.0} trials/s), {:.2} s with files; wrote {}",
         summary.simulate_s,

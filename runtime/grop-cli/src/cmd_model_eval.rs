@@ -52,11 +52,16 @@ pub struct Args {
 
 pub fn run(args: Args) -> anyhow::Result<()> {
     let robot = match &args.robot {
-        Some(p) => RobotConfig::load(p).with_context(|| format!("loading robot file {}", p.display()))?,
+        Some(p) => {
+            RobotConfig::load(p).with_context(|| format!("loading robot file {}", p.display()))?
+        }
         None => RobotConfig::default(),
     };
     if args.trials < 25 {
-        log::warn!("{} trials per cell: the reported numbers need at least 25", args.trials);
+        log::warn!(
+            "{} trials per cell: the reported numbers need at least 25",
+            args.trials
+        );
     }
     let spec = EvalSpec {
         seed: args.seed,
@@ -77,16 +82,25 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     for name in &args.evaluators {
         let mut evaluator: Box<dyn FeasibilityEvaluator> = match name.as_str() {
             "fcn" => Box::new(
-                FcnEvaluator::load(&args.model).with_context(|| format!("loading {}", args.model.display()))?,
+                FcnEvaluator::load(&args.model)
+                    .with_context(|| format!("loading {}", args.model.display()))?,
             ),
             "binary" => Box::new(BinaryAnnulusEvaluator::new()),
             "blurred" => Box::new(BlurredAnnulusEvaluator::new()),
-            "oracle" => Box::new(OracleEvaluator::new(args.oracle_trials, args.seed ^ 0x6f72_6163)),
+            "oracle" => Box::new(OracleEvaluator::new(
+                args.oracle_trials,
+                args.seed ^ 0x6f72_6163,
+            )),
             other => bail!("unknown evaluator `{other}` (fcn, binary, blurred, oracle)"),
         };
         let t = Instant::now();
-        let report = evaluate(evaluator.as_mut(), &set).with_context(|| format!("running evaluator {name}"))?;
-        log::info!("{name}: {:.2} s for {} tasks", t.elapsed().as_secs_f64(), set.tasks.len());
+        let report = evaluate(evaluator.as_mut(), &set)
+            .with_context(|| format!("running evaluator {name}"))?;
+        log::info!(
+            "{name}: {:.2} s for {} tasks",
+            t.elapsed().as_secs_f64(),
+            set.tasks.len()
+        );
         reports.push(report);
     }
     println!(
@@ -102,6 +116,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     for r in &reports {
         println!("{}", r.markdown_row());
     }
+    if let Some(r) = reports.first() {
+        println!("{}", r.markdown_truth_row());
+    }
     if let Some(path) = &args.json {
         let doc = serde_json::json!({ "spec": spec, "model": args.model, "reports": reports });
         std::fs::write(path, serde_json::to_string_pretty(&doc)? + "\n")
@@ -114,17 +131,30 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 }
 
 fn check_card(card: &std::path::Path, reports: &[QualityReport]) -> anyhow::Result<()> {
-    let text = std::fs::read_to_string(card).with_context(|| format!("reading model card {}", card.display()))?;
-    let bounds = psi_eval::thresholds::parse_model_card(&text).with_context(|| format!("in {}", card.display()))?;
-    let fcn = reports.iter().find(|r| r.evaluator == "fcn").context("--check-card needs the fcn evaluator")?;
+    let text = std::fs::read_to_string(card)
+        .with_context(|| format!("reading model card {}", card.display()))?;
+    let bounds = psi_eval::thresholds::parse_model_card(&text)
+        .with_context(|| format!("in {}", card.display()))?;
+    let fcn = reports
+        .iter()
+        .find(|r| r.evaluator == "fcn")
+        .context("--check-card needs the fcn evaluator")?;
     let mut problems = psi_eval::thresholds::violations(fcn, &bounds);
     if let Some(bin) = reports.iter().find(|r| r.evaluator == "binary-annulus") {
         problems.extend(psi_eval::thresholds::not_better_than(fcn, bin));
     }
     if problems.is_empty() {
-        println!("\nmodel card {}: all {} thresholds met", card.display(), bounds.len());
+        println!(
+            "\nmodel card {}: all {} thresholds met",
+            card.display(),
+            bounds.len()
+        );
         Ok(())
     } else {
-        bail!("model card {} not met:\n  {}", card.display(), problems.join("\n  "))
+        bail!(
+            "model card {} not met:\n  {}",
+            card.display(),
+            problems.join("\n  ")
+        )
     }
 }

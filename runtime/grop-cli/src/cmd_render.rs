@@ -84,13 +84,17 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let scene = match &args.scene {
         Some(path) => Scene::load(path)?,
         None => match args.kind {
-            KindArg::Evaluation => world::generate::evaluation_scene(args.seed, args.chairs, args.targets),
+            KindArg::Evaluation => {
+                world::generate::evaluation_scene(args.seed, args.chairs, args.targets)
+            }
             KindArg::Training => world::generate::training_scenes(args.seed, 1, args.targets)
                 .pop()
                 .context("the generator returned no scene")?,
         },
     };
-    scene.validate().map_err(|e| anyhow::anyhow!("scene: {e}"))?;
+    scene
+        .validate()
+        .map_err(|e| anyhow::anyhow!("scene: {e}"))?;
     let robot = match &args.robot {
         Some(path) => RobotConfig::load(path)?,
         None => RobotConfig::default(),
@@ -107,9 +111,19 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         AreaArg::Candidate => HeatmapArea::Candidate,
         AreaArg::Whole => HeatmapArea::WholeCrop,
     };
-    let pairs: Vec<([f64; 3], Side)> =
-        scene.targets.iter().flat_map(|t| sides.iter().map(move |&s| (t.as_array(), s))).collect();
-    let heatmaps = ground_truth_heatmaps(&scene, &robot, &pairs, area, args.trials_per_cell, args.seed);
+    let pairs: Vec<([f64; 3], Side)> = scene
+        .targets
+        .iter()
+        .flat_map(|t| sides.iter().map(move |&s| (t.as_array(), s)))
+        .collect();
+    let heatmaps = ground_truth_heatmaps(
+        &scene,
+        &robot,
+        &pairs,
+        area,
+        args.trials_per_cell,
+        args.seed,
+    );
 
     let room_view = if args.whole_room {
         RoomView::whole_room(&scene, args.pixels_per_m)
@@ -126,16 +140,32 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let mut picture = view::render_room(&scene, &room_view);
     let only_candidates = matches!(area, HeatmapArea::Candidate);
     for ((target, side), heatmap) in pairs.iter().zip(&heatmaps) {
-        view::overlay_heatmap(&mut picture, &room_view, target[0], *side, heatmap, only_candidates);
+        view::overlay_heatmap(
+            &mut picture,
+            &room_view,
+            target[0],
+            *side,
+            heatmap,
+            only_candidates,
+        );
     }
     // Targets drawn again on top of the heatmaps.
     for target in &scene.targets {
-        view::draw_marker(&mut picture, &room_view, target.x_m, target.y_m, 0.06, view::Rgb([30, 60, 230]));
+        view::draw_marker(
+            &mut picture,
+            &room_view,
+            target.x_m,
+            target.y_m,
+            0.06,
+            view::Rgb([30, 60, 230]),
+        );
     }
     if let Some(dir) = args.out.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     }
-    picture.save(&args.out).with_context(|| format!("writing {}", args.out.display()))?;
+    picture
+        .save(&args.out)
+        .with_context(|| format!("writing {}", args.out.display()))?;
 
     let crops_path = sibling(&args.out, "crops.png");
     crop_montage(&scene, &pairs, &heatmaps, only_candidates)
@@ -155,26 +185,51 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             best
         );
     }
-    println!("wrote {}, {}, {}", args.out.display(), crops_path.display(), scene_path.display());
+    println!(
+        "wrote {}, {}, {}",
+        args.out.display(),
+        crops_path.display(),
+        scene_path.display()
+    );
     Ok(())
 }
 
 /// `out/render.png` -> `out/render.<suffix>`.
 fn sibling(path: &Path, suffix: &str) -> PathBuf {
-    let stem = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "render".into());
+    let stem = path
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "render".into());
     path.with_file_name(format!("{stem}.{suffix}"))
 }
 
 /// The network's view of every (target, side): gray crop with its heatmap, 4x scaled, one row
 /// per target, one column per side.
-fn crop_montage(scene: &Scene, pairs: &[([f64; 3], Side)], heatmaps: &[world::Heatmap], only_candidates: bool) -> RgbImage {
+fn crop_montage(
+    scene: &Scene,
+    pairs: &[([f64; 3], Side)],
+    heatmaps: &[world::Heatmap],
+    only_candidates: bool,
+) -> RgbImage {
     const SCALE: u32 = 4;
     const GAP: u32 = 6;
-    let n_targets = pairs.iter().map(|p| p.0[0].to_bits()).collect::<std::collections::BTreeSet<_>>().len().max(1);
+    let n_targets = pairs
+        .iter()
+        .map(|p| p.0[0].to_bits())
+        .collect::<std::collections::BTreeSet<_>>()
+        .len()
+        .max(1);
     let cols = pairs.len().div_ceil(n_targets).max(1) as u32;
     let rows = n_targets as u32;
-    let (cw, ch) = (view::CROP_COLS as u32 * SCALE, view::CROP_ROWS as u32 * SCALE);
-    let mut montage = RgbImage::from_pixel(cols * (cw + GAP) + GAP, rows * (ch + GAP) + GAP, view::Rgb([255, 255, 255]));
+    let (cw, ch) = (
+        view::CROP_COLS as u32 * SCALE,
+        view::CROP_ROWS as u32 * SCALE,
+    );
+    let mut montage = RgbImage::from_pixel(
+        cols * (cw + GAP) + GAP,
+        rows * (ch + GAP) + GAP,
+        view::Rgb([255, 255, 255]),
+    );
     for (i, ((target, side), heatmap)) in pairs.iter().zip(heatmaps).enumerate() {
         let crop = view::render_crop(scene, target[0], *side);
         let tile = view::combined_crop_image(&crop, heatmap, SCALE, only_candidates);

@@ -290,10 +290,14 @@ impl IpcNode {
                 detail: format!("{other:?}"),
             },
         })?;
+        // SAFETY: the descriptor belongs to `listener`, which the subscriber owns and keeps open
+        // for its whole life; it is only polled, never closed or read through this copy.
+        let listener_fd = unsafe { listener.file_descriptor().native_handle() };
         Ok(TopicSubscriber {
             service,
             subscriber,
             listener,
+            listener_fd,
             _services: services,
         })
     }
@@ -426,6 +430,8 @@ pub struct TopicSubscriber<T: Topic> {
     service: String,
     subscriber: Subscriber<Ipc, T, ()>,
     listener: Listener<Ipc>,
+    /// The listener's socket, valid as long as `listener` lives.
+    listener_fd: i32,
     _services: Services<T>,
 }
 
@@ -477,9 +483,10 @@ impl<T: Topic> TopicSubscriber<T> {
             if remaining.is_zero() {
                 return Ok(None);
             }
-            self.listener
-                .timed_wait(|_| {}, remaining)
-                .map_err(|e| self.error(format!("{e:?}")))?;
+            // poll(2) on the listener's socket: `Listener::timed_wait` uses a socket receive
+            // timeout that the kernel rounds up to scheduler ticks (ms), ppoll does not.
+            wait_readable(self.listener_fd, remaining)
+                .map_err(|e| self.error(format!("waiting for a wake-up: {e}")))?;
         }
     }
 
@@ -487,4 +494,28 @@ impl<T: Topic> TopicSubscriber<T> {
     pub fn service(&self) -> &str {
         &self.service
     }
+}
+
+/// Sleeps until `fd` is readable or `timeout` passed (an interrupted sleep returns early; the
+/// caller loops on its own deadline).
+fn wait_readable(fd: i32, timeout: Duration) -> std::io::Result<()> {
+    let mut poll_fd = libc::pollfd {
+        fd,
+        events: libc::POLLIN,
+        revents: 0,
+    };
+    let timeout = libc::timespec {
+        tv_sec: libc::time_t::try_from(timeout.as_secs()).unwrap_or(libc::time_t::MAX),
+        // Below 1e9, so it fits a c_long on every target.
+        tv_nsec: timeout.subsec_nanos() as libc::c_long,
+    };
+    // SAFETY: one valid pollfd, a valid timespec, no signal mask change.
+    let status = unsafe { libc::ppoll(&mut poll_fd, 1, &timeout, std::ptr::null()) };
+    if status < 0 {
+        let error = std::io::Error::last_os_error();
+        if error.kind() != std::io::ErrorKind::Interrupted {
+            return Err(error);
+        }
+    }
+    Ok(())
 }

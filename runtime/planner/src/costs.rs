@@ -170,6 +170,42 @@ impl LegCache {
     }
 }
 
+/// Wraps a travel-time oracle and remembers every answer by its (unordered) endpoints, so that
+/// several planners on the same task, or a repeated decision, ask the motion planner once per leg.
+#[derive(Debug, Clone)]
+pub struct MemoTravel<T> {
+    inner: T,
+    memo: std::collections::HashMap<[u64; 4], Option<f64>>,
+    misses: usize,
+}
+
+impl<T: TravelTime> MemoTravel<T> {
+    /// A memo around `inner`.
+    pub fn new(inner: T) -> Self {
+        Self { inner, memo: std::collections::HashMap::new(), misses: 0 }
+    }
+
+    /// Calls that reached the wrapped oracle.
+    pub fn misses(&self) -> usize {
+        self.misses
+    }
+}
+
+impl<T: TravelTime> TravelTime for MemoTravel<T> {
+    fn travel_time_s(&mut self, from: (f64, f64), to: (f64, f64)) -> Option<f64> {
+        let a = [from.0.to_bits(), from.1.to_bits()];
+        let b = [to.0.to_bits(), to.1.to_bits()];
+        let key = if a <= b { [a[0], a[1], b[0], b[1]] } else { [b[0], b[1], a[0], a[1]] };
+        if let Some(&t) = self.memo.get(&key) {
+            return t;
+        }
+        self.misses += 1;
+        let t = self.inner.travel_time_s(from, to);
+        self.memo.insert(key, t);
+        t
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -227,6 +263,17 @@ mod tests {
         assert!(cache.has_no_path(NavNode::Goal(1), NavNode::Station));
         assert!(!cache.has_no_path(NavNode::Goal(0), NavNode::Station));
         assert_eq!(cache.known_s(NavNode::Goal(0), NavNode::Station), None);
+    }
+
+    #[test]
+    fn memo_asks_once_per_unordered_leg() {
+        let mut memo = MemoTravel::new(Counting(0));
+        assert_eq!(memo.travel_time_s((0.0, 0.0), (1.0, 2.0)), Some(3.0));
+        assert_eq!(memo.travel_time_s((1.0, 2.0), (0.0, 0.0)), Some(3.0));
+        assert_eq!(memo.travel_time_s((0.0, 0.0), (500.0, 0.0)), None);
+        assert_eq!(memo.travel_time_s((0.0, 0.0), (500.0, 0.0)), None);
+        assert_eq!(memo.misses(), 2);
+        assert_eq!(memo.inner.0, 2);
     }
 
     #[test]

@@ -1,4 +1,5 @@
 //! Task planner, GROP and baselines.
+pub mod arm;
 pub mod costs;
 pub mod feasibility;
 pub mod methods;

@@ -1,7 +1,7 @@
 //! Base collision against the scene, and the scene as boxes for the arm's collision checks.
 
-use ur5e_kin::{BasePose, ObstacleBox};
 use nalgebra::{Point3, Vector3};
+use ur5e_kin::{BasePose, ObstacleBox};
 
 use crate::robot::RobotConfig;
 use crate::scene::{Scene, TABLE_CENTER_Y_M};

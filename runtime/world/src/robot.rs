@@ -6,8 +6,8 @@
 
 use std::path::{Path, PathBuf};
 
-use ur5e_kin::PlaceConfig;
 use serde::{Deserialize, Serialize};
+use ur5e_kin::PlaceConfig;
 
 use crate::geometry::OrientedRect;
 use crate::scene::{FileEncoding, InvalidField, encoding_of, first_non_finite};

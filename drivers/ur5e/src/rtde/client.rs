@@ -303,10 +303,6 @@ pub struct RtdeClient {
     text_messages: u64,
 }
 
-enum Wait {
-    Until(Instant),
-}
-
 impl RtdeClient {
     /// Connects to `addr`, negotiates protocol version 2 and returns a paused client.
     pub fn connect(
@@ -592,7 +588,7 @@ impl RtdeClient {
                 out.skipped = got - 1;
                 return Ok(());
             }
-            self.fill(Wait::Until(deadline), "data package")?;
+            self.fill(deadline, timeout, "data package")?;
         }
     }
 
@@ -700,7 +696,7 @@ impl RtdeClient {
                     return Ok(r);
                 }
             }
-            self.fill(Wait::Until(deadline), what)?;
+            self.fill(deadline, self.timeouts.reply, what)?;
         }
     }
 
@@ -713,20 +709,21 @@ impl RtdeClient {
         }
     }
 
-    /// Blocking read until at least one byte arrived or the deadline passed.
-    fn fill(&mut self, wait: Wait, what: &'static str) -> Result<(), RtdeLinkError> {
+    /// Blocking read until at least one byte arrived or the deadline passed; `waited` is the
+    /// whole wait the caller allowed (for the error message).
+    fn fill(
+        &mut self,
+        deadline: Instant,
+        waited: Duration,
+        what: &'static str,
+    ) -> Result<(), RtdeLinkError> {
         self.compact();
-        let Wait::Until(deadline) = wait;
         let addr = self.addr;
         loop {
             let now = Instant::now();
             let left = deadline.saturating_duration_since(now);
             if left.is_zero() {
-                return Err(RtdeLinkError::Timeout {
-                    addr,
-                    what,
-                    waited: self.timeouts.reply.max(left),
-                });
+                return Err(RtdeLinkError::Timeout { addr, what, waited });
             }
             self.stream
                 .set_read_timeout(Some(left))
@@ -743,11 +740,7 @@ impl RtdeClient {
                         io::ErrorKind::WouldBlock | io::ErrorKind::TimedOut
                     ) =>
                 {
-                    return Err(RtdeLinkError::Timeout {
-                        addr,
-                        what,
-                        waited: left,
-                    });
+                    return Err(RtdeLinkError::Timeout { addr, what, waited });
                 }
                 Err(e) if e.kind() == io::ErrorKind::Interrupted => continue,
                 Err(source) => return Err(RtdeLinkError::Io { addr, source }),

@@ -767,3 +767,34 @@ mod tests {
         assert_eq!(names, ["timestamp", "actual_q"]);
     }
 }
+
+#[cfg(test)]
+mod properties {
+    use super::*;
+    use proptest::prelude::*;
+
+    proptest! {
+        /// Whatever arrives on the socket, the decoders return a value or an error, never panic.
+        #[test]
+        fn decoders_never_panic_on_arbitrary_bytes(bytes in proptest::collection::vec(any::<u8>(), 0..300)) {
+            let _ = split_package(&bytes);
+            let _ = TextMessage::decode(&bytes);
+            let _ = ControllerVersion::decode(&bytes);
+            let types = [RtdeType::Double, RtdeType::Vector6d, RtdeType::Int32, RtdeType::Bool];
+            let mut out = [RtdeValue::Bool(false); 4];
+            let _ = decode_fields(&types, &bytes, &mut out);
+        }
+
+        /// Encoding then decoding a recipe's values gives them back.
+        #[test]
+        fn vectors_round_trip(v in proptest::array::uniform6(-1e6f64..1e6), i in any::<i32>(), u in any::<u64>()) {
+            let values = [RtdeValue::Vector6d(v), RtdeValue::Int32(i), RtdeValue::Uint64(u)];
+            let types = [RtdeType::Vector6d, RtdeType::Int32, RtdeType::Uint64];
+            let mut bytes = Vec::new();
+            encode_fields(&types, &values, &mut bytes).unwrap();
+            let mut out = [RtdeValue::Bool(false); 3];
+            decode_fields(&types, &bytes, &mut out).unwrap();
+            prop_assert_eq!(out, values);
+        }
+    }
+}

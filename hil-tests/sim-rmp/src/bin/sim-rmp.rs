@@ -84,7 +84,11 @@ fn main() -> anyhow::Result<()> {
     let clock = move || origin.elapsed();
     println!("sim-rmp ready bus={} node={}", args.bus, args.node);
     std::io::stdout().flush().context("flushing stdout")?;
-    log::info!("sim-rmp on bus {:?} as {:?}, profile {profile:?}", args.bus, args.node);
+    log::info!(
+        "sim-rmp on bus {:?} as {:?}, profile {profile:?}",
+        args.bus,
+        args.node
+    );
 
     loop {
         while let Ok(control) = rx.try_recv() {
