@@ -9,7 +9,7 @@ What it does:
 2. splits by *scene* (validation scenes are never seen in training, as at deployment);
 3. trains the FCN (psi_model.py) with a binary cross-entropy on the success fraction, masked to
    the labelled cells and weighted by trials per cell (the binomial likelihood of the trials);
-4. keeps the epoch with the best validation Brier score;
+4. keeps the epoch with the lowest validation mean squared error (the Brier score up to a constant);
 5. exports ONNX (uint8 input [N,1,32,64] -> float32 heatmap [N,1,32,64], dynamic N), checks
    onnxruntime reproduces torch on the validation crops, and writes `<out>.json` with the
    settings, data summary, parameter count, MACs and validation metrics (for MODEL_CARD.md).
@@ -97,7 +97,7 @@ def metrics(pred: np.ndarray, label: np.ndarray, mask: np.ndarray) -> dict[str, 
         sel = bins == b
         if sel.any():
             ece += sel.mean() * abs(p[sel].mean() - y[sel].mean())
-    return {"mae": float(np.abs(p - y).mean()), "brier": float(((p - y) ** 2).mean()), "ece": float(ece)}
+    return {"mae": float(np.abs(p - y).mean()), "mse": float(((p - y) ** 2).mean()), "ece": float(ece)}
 
 
 def predict(model: PsiFcn, images: np.ndarray, batch: int = 256) -> np.ndarray:
@@ -183,11 +183,11 @@ def main() -> int:
             total += float(loss.detach())
         epochs_run = epoch + 1
         m = metrics(predict(model, images[eval_ix]), labels[eval_ix], mask[eval_ix])
-        if m["brier"] < best[0]:
-            best = (m["brier"], {kk: v.clone() for kk, v in model.state_dict().items()}, epoch)
+        if m["mse"] < best[0]:
+            best = (m["mse"], {kk: v.clone() for kk, v in model.state_dict().items()}, epoch)
         if epoch % 10 == 0 or epoch == args.epochs - 1:
             print(f"epoch {epoch:4d} loss {total / steps_per_epoch:.4f} val mae {m['mae']:.4f} "
-                  f"brier {m['brier']:.4f} ece {m['ece']:.4f} ({time.time() - start:.0f} s)", flush=True)
+                  f"mse {m['mse']:.4f} ece {m['ece']:.4f} ({time.time() - start:.0f} s)", flush=True)
         if time.time() - start > args.max_minutes * 60:
             print(f"time budget of {args.max_minutes} min reached after {epochs_run} epochs")
             break

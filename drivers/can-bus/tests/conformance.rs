@@ -101,3 +101,18 @@ fn socketcan_conforms_on_vcan0() {
     // Small bursts: a vcan socket's default receive buffer holds a few hundred frames.
     conformance::run_all(|| SocketCanBus::open("vcan0").expect("open vcan0"), 64).unwrap();
 }
+
+#[test]
+fn socketcan_open_names_a_missing_interface() {
+    // Works on every machine: without AF_CAN or without the interface, opening fails cleanly.
+    let error = SocketCanBus::open("nosuchcan7")
+        .err()
+        .expect("no such interface");
+    assert!(
+        matches!(error, can_bus::OpenError::Open { .. }),
+        "{error:?}"
+    );
+    assert!(error.to_string().contains("nosuchcan7"));
+    assert!(!interface_exists("nosuchcan7"));
+    assert!(!interface_exists("../lo"));
+}

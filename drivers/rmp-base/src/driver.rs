@@ -80,7 +80,8 @@ pub struct RmpBaseConfig {
     pub command_period: Duration,
     /// Velocity targets older than this are stale and the base is ramped to zero. 100 ms.
     pub input_timeout: Duration,
-    /// No complete feedback set for this long means the base stopped answering. 250 ms (the
+    /// No feedback frame for this long means the base stopped answering; frames without a
+    /// complete readable set for this long mean its feedback is unreadable. 250 ms (the
     /// base answers every command, so this is about 12 missed replies at 50 Hz and well inside
     /// the base's own 0.5 s loss-of-command timeout).
     pub response_timeout: Duration,
@@ -234,17 +235,31 @@ pub enum BaseError {
         timeout: Duration,
     },
     /// Frames arrive but no complete feedback set could be read for longer than the response
-    /// timeout (feedback layout mismatch, corrupted frames). Motion commands are zero.
+    /// timeout (feedback layout changed behind the driver's back, corrupted frames). Motion
+    /// commands are zero.
     #[error(
-        "RMP base feedback unreadable for {silent_for:?}: {last_error} (expected {expected_frames} frames per set); commanding zero velocity"
+        "RMP base feedback unreadable for {silent_for:?} (last error: {last_error:?}, expected {expected_frames} frames per set); commanding zero velocity"
     )]
     FeedbackUnreadable {
         /// Time since the last complete set.
         silent_for: Duration,
-        /// The last assembly error.
-        last_error: FeedbackError,
+        /// The last assembly error, if any (partial sets alone leave none).
+        last_error: Option<FeedbackError>,
         /// Frames per set in the layout the driver expects.
         expected_frames: usize,
+    },
+    /// At start-up the base did not take the feedback bitmaps: the forced configuration
+    /// feedback echoed other bitmaps. The driver starts over (rewrites them).
+    #[error(
+        "RMP base kept feedback bitmaps {echoed:08x?} after {attempts} writes of {wanted:08x?}"
+    )]
+    FeedbackConfigRejected {
+        /// Bitmaps written.
+        wanted: [u32; 4],
+        /// Bitmaps the base reports.
+        echoed: [u32; 4],
+        /// Write-and-verify rounds done.
+        attempts: u8,
     },
     /// The base did not report the requested mode in time.
     #[error("RMP base did not enter {wanted:?} within {timeout:?} (it reports {reported:?})")]
@@ -312,13 +327,19 @@ pub struct Tick {
     pub mode_reached: Option<BaseMode>,
 }
 
-/// Start-up: write the feedback bitmaps one per tick, then drop one tick of replies.
+/// Start-up: write the feedback bitmaps one per tick, read them back through the forced
+/// configuration feedback (as the Segway library does), then drop one tick of replies.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Startup {
     WriteBitmap(u8),
+    ForceConfig,
+    Verify,
     Settle,
     Running,
 }
+
+/// Write-and-verify rounds before start-up reports [`BaseError::FeedbackConfigRejected`].
+const FEEDBACK_CONFIG_ATTEMPTS: u8 = 3;
 
 /// The driver. Owns the link; the caller owns the clock and calls [`tick`](Self::tick) once per
 /// command period with the current monotonic time. Nothing allocates after construction.
@@ -334,6 +355,10 @@ pub struct RmpBase<L> {
     assembler: FeedbackAssembler,
     last_feedback_error: Option<FeedbackError>,
     started_at: Option<Duration>,
+    running_since: Duration,
+    last_heard: Option<Duration>,
+    forced_echo: Option<FeedbackSet>,
+    config_rounds: u8,
     last_tick: Option<Duration>,
     status: BaseStatus,
     track_width_m: f64,
@@ -364,6 +389,10 @@ impl<L: RmpLink> RmpBase<L> {
             assembler: FeedbackAssembler::new(layout),
             last_feedback_error: None,
             started_at: None,
+            running_since: Duration::ZERO,
+            last_heard: None,
+            forced_echo: None,
+            config_rounds: 0,
             last_tick: None,
             status: BaseStatus {
                 state: None,
@@ -443,15 +472,61 @@ impl<L: RmpLink> RmpBase<L> {
                 sent_config = true;
                 self.startup = if index + 1 < self.config.profile.feedback_bitmap_count() {
                     Startup::WriteBitmap(index + 1)
+                } else if self.config.profile == FirmwareProfile::SegwayInc2014 {
+                    Startup::ForceConfig
                 } else {
+                    // The forced-feedback layout of the older firmware is not documented.
                     Startup::Settle
                 };
             }
+            Startup::ForceConfig => {
+                // Replies to the writes came in during the last period and were dropped.
+                self.assembler.set_layout(FeedbackLayout::ForcedConfig);
+                self.forced_echo = None;
+                self.config_rounds += 1;
+                self.send_config(ConfigCommand::ForceConfigFeedback(true))?;
+                sent_config = true;
+                self.startup = Startup::Verify;
+            }
+            Startup::Verify => {
+                sent_config = true;
+                match self.forced_echo.take() {
+                    None => self.send_config(ConfigCommand::None)?, // prompt a reply
+                    Some(echo) => {
+                        let wanted = self.config.feedback.words();
+                        let echoed = [
+                            FeedbackItem::UserFeedbackBitmap1,
+                            FeedbackItem::UserFeedbackBitmap2,
+                            FeedbackItem::UserFeedbackBitmap3,
+                            FeedbackItem::UserFeedbackBitmap4,
+                        ]
+                        .map(|item| echo.get(item).unwrap_or(u32::MAX));
+                        self.send_config(ConfigCommand::ForceConfigFeedback(false))?;
+                        if echoed == wanted {
+                            info!("RMP feedback bitmaps verified: {wanted:08x?}");
+                            self.config_rounds = 0;
+                            self.startup = Startup::Settle;
+                        } else {
+                            warn!("RMP feedback bitmaps {echoed:08x?}, wanted {wanted:08x?}");
+                            self.startup = Startup::WriteBitmap(0);
+                            if self.config_rounds >= FEEDBACK_CONFIG_ATTEMPTS {
+                                mode_error = Some(BaseError::FeedbackConfigRejected {
+                                    wanted,
+                                    echoed,
+                                    attempts: self.config_rounds,
+                                });
+                                self.config_rounds = 0;
+                            }
+                        }
+                    }
+                }
+            }
             Startup::Settle => {
-                // Replies written before the layout change may be in either layout: drop them.
-                self.assembler.reset();
+                // Replies sent before the layout change may be in either layout: drop them.
+                self.assembler
+                    .set_layout(FeedbackLayout::User(self.config.feedback));
                 self.status.last_feedback = None;
-                self.started_at = Some(now);
+                self.running_since = now;
                 self.startup = Startup::Running;
             }
             Startup::Running => match self.modes.poll(us(now)) {
@@ -478,13 +553,15 @@ impl<L: RmpLink> RmpBase<L> {
             },
         }
 
-        let since = self
-            .status
-            .last_feedback
-            .or(self.started_at)
-            .unwrap_or(started_at);
-        let silent_for = now.saturating_sub(since);
-        let silent = silent_for > self.config.response_timeout;
+        // Silent: no feedback frame at all. Unreadable: frames, but no complete readable set.
+        let heard_for = now.saturating_sub(self.last_heard.unwrap_or(started_at));
+        let base_silent = heard_for > self.config.response_timeout;
+        let unread_for =
+            now.saturating_sub(self.status.last_feedback.unwrap_or(self.running_since));
+        let unreadable = !base_silent
+            && self.startup == Startup::Running
+            && unread_for > self.config.response_timeout;
+        let silent = base_silent || unreadable;
 
         // Decide the velocity: zero unless the input is fresh, the base answers, drives, and
         // reports no stopping fault.
@@ -519,18 +596,17 @@ impl<L: RmpLink> RmpBase<L> {
         if let Some(e) = mode_error {
             return Err(e);
         }
-        if silent && self.startup == Startup::Running {
-            // An error since the last good set means frames arrive but do not assemble.
-            return Err(match self.last_feedback_error {
-                Some(last_error) => BaseError::FeedbackUnreadable {
-                    silent_for,
-                    last_error,
-                    expected_frames: self.assembler.layout().frame_count(),
-                },
-                None => BaseError::Silent {
-                    silent_for,
-                    timeout: self.config.response_timeout,
-                },
+        if base_silent {
+            return Err(BaseError::Silent {
+                silent_for: heard_for,
+                timeout: self.config.response_timeout,
+            });
+        }
+        if unreadable {
+            return Err(BaseError::FeedbackUnreadable {
+                silent_for: unread_for,
+                last_error: self.last_feedback_error,
+                expected_frames: self.assembler.layout().frame_count(),
             });
         }
         if faulted {
@@ -557,9 +633,14 @@ impl<L: RmpLink> RmpBase<L> {
         }
     }
 
-    /// Reads everything waiting; returns the number of complete sets.
+    /// Reads everything waiting; returns the number of complete sets taken.
+    ///
+    /// Sets carry no header, so a base whose layout is larger than the expected one produces
+    /// "complete" sets of the wrong items followed by frames beyond the layout. A set is
+    /// therefore taken only at the end of the drain, and dropped when such frames follow it.
     fn drain_feedback(&mut self, now: Duration) -> u32 {
         let mut sets = 0;
+        let mut pending: Option<FeedbackSet> = None;
         // Bounded: at most a few sets' worth per tick, so a babbling bus cannot stall the loop.
         for _ in 0..4 * feedback::MAX_FRAMES {
             let frame = match self.link.try_recv() {
@@ -574,24 +655,41 @@ impl<L: RmpLink> RmpBase<L> {
             if !feedback::is_feedback_id(frame.id()) {
                 continue; // other hosts' commands, other devices
             }
-            if self.startup != Startup::Running {
-                continue;
+            self.last_heard = Some(now);
+            if !matches!(self.startup, Startup::Running | Startup::Verify) {
+                continue; // replies in a layout being changed
             }
             match self.assembler.push(&frame) {
                 Ok(Some(set)) => {
-                    sets += 1;
-                    self.last_feedback_error = None;
-                    self.take_feedback(&set, now);
+                    if let Some(previous) = pending.replace(set) {
+                        sets += self.accept(previous, now);
+                    }
                 }
                 Ok(None) => {}
                 Err(e) => {
+                    if matches!(e, FeedbackError::BeyondLayout { .. }) && pending.take().is_some() {
+                        warn!("RMP feedback longer than the configured layout: set dropped");
+                    }
                     self.status.feedback_errors += 1;
                     self.last_feedback_error = Some(e);
                     debug!("RMP feedback: {e}");
                 }
             }
         }
+        if let Some(set) = pending {
+            sets += self.accept(set, now);
+        }
         sets
+    }
+
+    fn accept(&mut self, set: FeedbackSet, now: Duration) -> u32 {
+        if self.startup == Startup::Verify {
+            self.forced_echo = Some(set);
+            return 0;
+        }
+        self.last_feedback_error = None;
+        self.take_feedback(&set, now);
+        1
     }
 
     fn take_feedback(&mut self, set: &FeedbackSet, now: Duration) {

@@ -24,6 +24,8 @@ struct ScriptedBase {
     layout: FeedbackLayout,
     /// Applies feedback-bitmap writes to `layout` (a real base does).
     obeys_bitmaps: bool,
+    /// Forced configuration feedback on (config command 30).
+    forced: bool,
     /// Every motion command received (normalised velocity, yaw).
     motions: Vec<(f32, f32)>,
     configs: Vec<ConfigCommand>,
@@ -40,6 +42,7 @@ impl ScriptedBase {
             answering: true,
             layout: FeedbackLayout::default(),
             obeys_bitmaps: true,
+            forced: false,
             motions: Vec::new(),
             configs: Vec::new(),
         }
@@ -61,6 +64,9 @@ impl ScriptedBase {
                         words[index as usize] = bitmap;
                         self.layout = FeedbackLayout::User(FeedbackBitmaps::new(words).unwrap());
                     }
+                    if let ConfigCommand::ForceConfigFeedback(on) = c {
+                        self.forced = on;
+                    }
                     if c == ConfigCommand::SetOperationalMode(ModeRequest::Tractor)
                         && self.accepts_tractor
                     {
@@ -72,7 +78,19 @@ impl ScriptedBase {
             if !self.answering {
                 continue;
             }
-            let set = FeedbackSet::from_fn(self.layout, |item| match item {
+            let FeedbackLayout::User(bitmaps) = self.layout else {
+                unreachable!("the scripted base keeps a user layout")
+            };
+            let layout = if self.forced {
+                FeedbackLayout::ForcedConfig
+            } else {
+                self.layout
+            };
+            let set = FeedbackSet::from_fn(layout, |item| match item {
+                FeedbackItem::UserFeedbackBitmap1 => bitmaps.words()[0],
+                FeedbackItem::UserFeedbackBitmap2 => bitmaps.words()[1],
+                FeedbackItem::UserFeedbackBitmap3 => bitmaps.words()[2],
+                FeedbackItem::UserFeedbackBitmap4 => bitmaps.words()[3],
                 FeedbackItem::OperationalState => self.state.to_word(),
                 FeedbackItem::FaultStatusWord1 => self.faults.words()[0],
                 FeedbackItem::VelocityLimit => self.velocity_limit_mps.to_bits(),
@@ -127,10 +145,10 @@ impl Rig {
 #[test]
 fn start_up_writes_every_feedback_bitmap_then_commands_motion() {
     let mut rig = Rig::new(RmpBaseConfig::default());
-    for _ in 0..6 {
+    for _ in 0..9 {
         rig.tick().unwrap();
     }
-    let written: Vec<_> = rig.base.configs.clone();
+    let written: Vec<_> = rig.base.configs[..4].to_vec();
     let expected: Vec<_> = RmpBaseConfig::default()
         .feedback
         .words()
@@ -142,6 +160,16 @@ fn start_up_writes_every_feedback_bitmap_then_commands_motion() {
         })
         .collect();
     assert_eq!(written, expected);
+    // Then read back through the forced configuration feedback, and switched off again.
+    assert_eq!(
+        rig.base.configs[4],
+        ConfigCommand::ForceConfigFeedback(true)
+    );
+    assert_eq!(
+        rig.base.configs[5],
+        ConfigCommand::ForceConfigFeedback(false)
+    );
+    assert!(!rig.base.forced);
     assert!(
         !rig.base.motions.is_empty(),
         "keep-alive motion after start-up"
@@ -284,22 +312,67 @@ fn a_mode_the_base_refuses_times_out() {
 }
 
 #[test]
-fn feedback_in_another_layout_is_reported_as_unreadable() {
+fn a_base_that_keeps_other_bitmaps_is_reported_at_start_up() {
     let mut rig = Rig::new(RmpBaseConfig::default());
     rig.base.obeys_bitmaps = false;
     let mut got = None;
+    for _ in 0..40 {
+        if let Err(e) = rig.tick() {
+            got = Some(e);
+            break;
+        }
+    }
+    match got {
+        Some(BaseError::FeedbackConfigRejected {
+            wanted,
+            echoed,
+            attempts,
+        }) => {
+            assert_eq!(wanted, RmpBaseConfig::default().feedback.words());
+            assert_eq!(echoed, FeedbackBitmaps::DEFAULT.words());
+            assert_eq!(attempts, 3);
+        }
+        other => panic!("{other:?}"),
+    }
+    assert!(!rig.driver.is_driving());
+}
+
+#[test]
+fn a_layout_changed_behind_the_drivers_back_is_unreadable_not_misread() {
+    let mut rig = Rig::new(RmpBaseConfig::default());
+    rig.enter_tractor();
+    rig.driver.set_velocity(Twist::new(0.2, 0.0), rig.now);
+    rig.tick().unwrap();
+    // Someone else (a service tool) restores the factory bitmaps: 48 frames per reply, whose
+    // first 8 would "complete" a set of the wrong items.
+    rig.base.layout = FeedbackLayout::default();
+    // The reply to the last command before the change is still valid: take it first.
+    rig.tick().unwrap();
+    let sets_before = rig.driver.status().feedback_sets;
+    let mut got = None;
     for _ in 0..30 {
+        rig.driver.set_velocity(Twist::new(0.2, 0.0), rig.now);
         if let Err(e) = rig.tick() {
             got = Some(e);
         }
     }
+    assert_eq!(
+        rig.driver.status().feedback_sets,
+        sets_before,
+        "no wrong set taken"
+    );
     match got {
         Some(BaseError::FeedbackUnreadable {
-            expected_frames, ..
-        }) => assert_eq!(expected_frames, 8),
+            expected_frames,
+            last_error,
+            ..
+        }) => {
+            assert_eq!(expected_frames, 8);
+            assert!(last_error.is_some());
+        }
         other => panic!("{other:?}"),
     }
-    assert!(rig.driver.status().feedback_errors > 0);
+    assert_eq!(rig.base.motions.last(), Some(&(0.0, 0.0)));
 }
 
 #[test]

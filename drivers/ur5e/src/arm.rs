@@ -81,6 +81,10 @@ pub struct ArmConfig {
     pub program_start_timeout: Duration,
     /// Deceleration used to stop the arm (rad/s^2).
     pub stop_decel_radps2: f64,
+    /// Tool centre point relative to the flange, set by every motion program (`set_tcp`);
+    /// `move_linear` poses and `ArmState::tcp_pose` refer to it. `None` leaves the
+    /// controller's configured TCP alone.
+    pub tcp_offset: Option<TcpPose>,
     /// TCP connect and reply timeouts.
     pub io_timeout: Duration,
 }
@@ -103,6 +107,7 @@ impl Default for ArmConfig {
             settled_speed_radps: 0.01,
             program_start_timeout: Duration::from_secs(1),
             stop_decel_radps2: 4.0,
+            tcp_offset: None,
             io_timeout: Duration::from_secs(2),
         }
     }
@@ -496,17 +501,16 @@ impl Ur5eArm {
     }
 
     fn motion_program(&self, motion: ScriptCommand) -> UrScriptProgram {
-        UrScriptProgram::new(
-            "grop_motion",
-            vec![
-                ScriptCommand::RtdeWatchdog {
-                    input: format!("input_int_register_{}", self.cfg.watchdog_register),
-                    min_frequency_hz: self.cfg.watchdog_min_hz,
-                    action: WatchdogAction::Stop,
-                },
-                motion,
-            ],
-        )
+        let mut commands = vec![ScriptCommand::RtdeWatchdog {
+            input: format!("input_int_register_{}", self.cfg.watchdog_register),
+            min_frequency_hz: self.cfg.watchdog_min_hz,
+            action: WatchdogAction::Stop,
+        }];
+        if let Some(tcp) = self.cfg.tcp_offset {
+            commands.push(ScriptCommand::SetTcp(tcp));
+        }
+        commands.push(motion);
+        UrScriptProgram::new("grop_motion", commands)
     }
 
     fn goal_error(&self, goal: &Goal) -> f64 {

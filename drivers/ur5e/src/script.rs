@@ -81,6 +81,8 @@ pub enum ScriptCommand {
         /// Duration (s).
         time_s: f64,
     },
+    /// `set_tcp(p[...])`: tool centre point relative to the flange (e.g. the gripper's length).
+    SetTcp(TcpPose),
     /// `sleep(t)`.
     Sleep {
         /// Seconds.
@@ -250,6 +252,14 @@ impl ScriptCommand {
                 out.push_str("speedj(");
                 list(out, qd_radps);
                 let _ = write!(out, ", {accel_radps2}, {time_s})");
+            }
+            Self::SetTcp(pose) => {
+                for x in pose.as_array() {
+                    finite("set_tcp", "pose", x)?;
+                }
+                out.push_str("set_tcp(p");
+                list(out, &pose.as_array());
+                out.push(')');
             }
             Self::Sleep { time_s } => {
                 positive("sleep", "t", *time_s)?;

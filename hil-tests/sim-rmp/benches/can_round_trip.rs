@@ -12,8 +12,8 @@ use std::time::{Duration, Instant};
 
 use can_bus::{CanBus, VirtualCanBus};
 use criterion::{Criterion, criterion_group, criterion_main};
-use rmp_base::{from_can, to_can};
-use rmp_codec::feedback::{FeedbackBitmaps, FeedbackItem, FeedbackLayout};
+use rmp_base::{DRIVER_FEEDBACK_ITEMS, from_can, to_can};
+use rmp_codec::feedback::{FeedbackBitmaps, FeedbackLayout};
 use rmp_codec::v3::{ConfigCommand, FirmwareProfile, MotionCommand};
 
 const PERCENTILE_SAMPLES: usize = 2000;
@@ -92,26 +92,11 @@ fn bench(c: &mut Criterion) {
     let bus_name = format!("rmp-bench-{}", std::process::id());
     let _sim = spawn_sim(&bus_name);
     let mut bus = VirtualCanBus::join(&bus_name, "bench").expect("join");
-    let minimal = FeedbackBitmaps::from_items(&[
-        FeedbackItem::FaultStatusWord1,
-        FeedbackItem::FaultStatusWord2,
-        FeedbackItem::FaultStatusWord3,
-        FeedbackItem::FaultStatusWord4,
-        FeedbackItem::OperationalState,
-        FeedbackItem::VelocityLimit,
-        FeedbackItem::YawRateLimit,
-        FeedbackItem::LinearVelocity,
-        FeedbackItem::DifferentialWheelVelocity,
-        FeedbackItem::RightFrontPosition,
-        FeedbackItem::LeftFrontPosition,
-        FeedbackItem::RightRearPosition,
-        FeedbackItem::LeftRearPosition,
-        FeedbackItem::LinearPosition,
-    ]);
+    let driver_set = FeedbackBitmaps::from_items(&DRIVER_FEEDBACK_ITEMS);
     let mut report = Vec::new();
     for (label, bitmaps) in [
         ("default_96_items_48_frames", FeedbackBitmaps::DEFAULT),
-        ("driver_14_items_7_frames", minimal),
+        ("driver_16_items_8_frames", driver_set),
     ] {
         configure(&mut bus, bitmaps);
         let frames = FeedbackLayout::User(bitmaps).frame_count();

@@ -1141,6 +1141,22 @@ mod tests {
     }
 
     #[test]
+    fn speedj_ramps_to_its_speed_then_stops_after_its_time() {
+        let inputs = InputTable::new();
+        let mut m = RobotModel::new(RobotInit::default());
+        m.load_program(parse_program("speedj([0.5, 0, 0, 0, 0, 0], 2.0, 1.0)").unwrap());
+        run(&mut m, &inputs, 0.5);
+        assert!(
+            (m.snapshot().qd[0] - 0.5).abs() < 1e-6,
+            "at speed after the 0.25 s ramp"
+        );
+        run(&mut m, &inputs, 1.5);
+        assert!(m.snapshot().qd[0].abs() < 1e-9, "stopped after t");
+        assert_eq!(m.runtime_state(), runtime_state::STOPPED);
+        assert!(m.q()[0] > 0.35 && m.q()[0] < 0.6, "q0 = {}", m.q()[0]);
+    }
+
+    #[test]
     fn power_sequence_reaches_running() {
         let inputs = InputTable::new();
         let mut m = RobotModel::new(RobotInit {

@@ -577,3 +577,82 @@ fn protocol_version_1_is_served_in_its_own_layout() {
     s2.write_all(&[0, 5, b'V', 0, 9]).unwrap();
     assert_eq!(read(&mut s2), (b'V', vec![0]));
 }
+
+#[test]
+fn dashboard_pause_and_play_resume_a_move() {
+    let sim = sim_with(|_| {});
+    let mut d = DashboardClient::connect(sim.ports().dashboard, Duration::from_secs(2)).unwrap();
+    let mut s = TcpStream::connect(sim.ports().realtime).unwrap();
+    s.write_all(b"def long_move():\n  movej([1.5, -1.2, 1.2, -1.5, -1.5, 0.0], a=2, v=0.5)\nend\n")
+        .unwrap();
+    wait_for("moving", Duration::from_secs(3), || {
+        sim.snapshot().qd[0].abs() > 0.2
+    });
+    d.pause().unwrap();
+    wait_for("paused at rest", Duration::from_secs(3), || {
+        let s = sim.snapshot();
+        s.runtime_state == 4 && s.qd.iter().all(|v| v.abs() < 1e-9)
+    });
+    assert!(
+        matches!(d.program_state().unwrap(), ProgramState::Paused(name) if name == "long_move")
+    );
+    let held = sim.snapshot().q[0];
+    thread::sleep(Duration::from_millis(100));
+    assert_eq!(sim.snapshot().q[0], held, "a paused arm holds still");
+    d.play().unwrap();
+    wait_for("finished", Duration::from_secs(10), || {
+        sim.snapshot().runtime_state == 1
+    });
+    assert!((sim.snapshot().q[0] - 1.5).abs() < 1e-9);
+}
+
+#[test]
+fn primary_port_takes_primary_commands_and_scripts() {
+    let sim = sim_with(|_| {});
+    let mut p = TcpStream::connect(sim.ports().primary).unwrap();
+    p.write_all(b"power off\n").unwrap();
+    wait_for("powered off", Duration::from_secs(2), || {
+        sim.snapshot().robot_mode == 3
+    });
+    p.write_all(b"power on\n").unwrap();
+    wait_for("idle", Duration::from_secs(2), || {
+        sim.snapshot().robot_mode == 5
+    });
+    p.write_all(b"set robotmode run\n").unwrap();
+    wait_for("running", Duration::from_secs(2), || {
+        sim.snapshot().robot_mode == 7
+    });
+    p.write_all(b"movej([0.1, -1.5, 1.5, -1.5, -1.5, 0.0], a=1.4, v=1.05)\n")
+        .unwrap();
+    wait_for("moved", Duration::from_secs(5), || {
+        let s = sim.snapshot();
+        s.runtime_state == 1 && (s.q[0] - 0.1).abs() < 1e-9
+    });
+}
+
+#[test]
+fn move_linear_targets_the_configured_tool_centre_point() {
+    let sim = sim_with(|_| {});
+    // A 0.2 m gripper along the flange z axis.
+    let tcp = TcpPose::from_array([0.0, 0.0, 0.2, 0.0, 0.0, 0.0]);
+    let mut arm = Ur5eArm::connect(ArmConfig {
+        tcp_offset: Some(tcp),
+        ..arm_config(&sim)
+    })
+    .unwrap();
+    let flange_before = sim.snapshot().tcp_pose;
+    // The first motion program sets the TCP; a no-op joint move applies it.
+    arm.move_joints(sim.snapshot().q, 1.0, 1.0, Duration::from_secs(5))
+        .unwrap();
+    arm.update().unwrap();
+    let tool = arm.state().tcp_pose;
+    let shift = TcpPose::from_array(flange_before).position_distance_m(&tool);
+    assert!((shift - 0.2).abs() < 1e-9, "TCP moved by {shift} m");
+    let mut goal = tool;
+    goal.y_m += 0.05;
+    goal.z_m -= 0.05;
+    arm.move_linear(goal, 0.2, 1.0, Duration::from_secs(10))
+        .unwrap();
+    let reached = TcpPose::from_array(sim.snapshot().tcp_pose);
+    assert!(reached.position_distance_m(&goal) < 1e-4);
+}

@@ -62,7 +62,7 @@ fn writes_the_documented_files() {
             }
         }
     }
-    assert!(images.iter().any(|&g| g == world::view::TABLE_GRAY));
+    assert!(images.contains(&world::view::TABLE_GRAY));
 
     let csv = BufReader::new(std::fs::File::open(dir.path().join("trials.csv")).expect("csv"));
     let lines: Vec<String> = csv.lines().map(|l| l.expect("utf-8")).collect();

@@ -69,9 +69,12 @@ pub struct Args {
     /// Robot speed of the main comparison (m/s).
     #[arg(long, default_value_t = 0.4)]
     pub speed: f64,
-    /// Speeds of the Table I sweep (m/s), comma-separated; empty to skip.
+    /// Speeds of the Table I sweep (m/s), comma-separated.
     #[arg(long, value_delimiter = ',', default_value = "0.2,0.4,0.8")]
     pub sweep_speeds: Vec<f64>,
+    /// Skip the speed sweep (main comparison only).
+    #[arg(long)]
+    pub no_sweep: bool,
     /// Methods of the main comparison, comma-separated.
     #[arg(long, value_delimiter = ',', default_value = "grop,satisficing,petlon,dvh,fcn-planning")]
     pub methods: Vec<String>,
@@ -106,7 +109,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         tasks_per_scene: args.tasks_per_scene,
         methods,
         main_speed_mps: args.speed,
-        sweep_speeds_mps: args.sweep_speeds.clone(),
+        sweep_speeds_mps: if args.no_sweep { Vec::new() } else { args.sweep_speeds.clone() },
         gt_trials_per_cell: args.trials_per_cell,
         robot: robot.clone(),
         ..EvalConfig::default()

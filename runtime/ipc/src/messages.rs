@@ -576,3 +576,46 @@ impl EventMsg {
         core::str::from_utf8(bytes).map_err(|_| MessageError::DetailNotUtf8)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The layouts are the protocol between processes: a change must bump the `/vN` type names.
+    #[test]
+    fn wire_sizes_are_fixed() {
+        assert_eq!(size_of::<OverheadFrameHeader>(), 48);
+        assert_eq!(size_of::<OverheadFrame>(), 48 + OVERHEAD_MAX_PIXELS);
+        assert_eq!(size_of::<PlanStep>(), 72);
+        assert_eq!(size_of::<PlanMsg>(), 64 + 72 * MAX_PLAN_STEPS);
+        assert_eq!(size_of::<BaseStateMsg>(), 88);
+        assert_eq!(size_of::<ArmStateMsg>(), 184);
+        assert_eq!(size_of::<EventMsg>(), 152);
+    }
+
+    #[test]
+    fn zeroed_messages_decode_to_defined_values() {
+        let base = BaseStateMsg {
+            seq: 0,
+            stamp_ns: 0,
+            x_m: 0.0,
+            y_m: 0.0,
+            yaw_rad: 0.0,
+            speed_mps: 0.0,
+            yaw_rate_radps: 0.0,
+            commanded_speed_mps: 0.0,
+            commanded_yaw_rate_radps: 0.0,
+            mode: 0,
+            fault_bits: 0,
+            link_up: 0,
+            watchdog_stopped: 0,
+            reserved: [0; 6],
+        };
+        // A zeroed (never written) state says "unknown", never "tractor".
+        assert_eq!(base.mode(), Ok(BaseMode::Unknown));
+        let mut event = EventMsg::new(EventKind::PlanStarted, 0, "");
+        event.kind = 0;
+        assert!(event.kind().is_err(), "a zeroed event has no kind");
+        assert_eq!(event.detail(), Ok(""));
+    }
+}

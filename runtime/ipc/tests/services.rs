@@ -344,3 +344,76 @@ fn a_blocked_subscriber_wakes_for_a_message_from_another_thread() {
     done_tx.send(()).unwrap();
     publisher_thread.join().unwrap();
 }
+
+/// Role of the child process in `services_work_across_two_processes`; does nothing when run as
+/// an ordinary test.
+#[test]
+fn child_process_role() {
+    let Ok(namespace) = std::env::var("GROP_IPC_TEST_CHILD_NAMESPACE") else {
+        return;
+    };
+    let node = IpcNode::new(&namespace, "child").unwrap();
+    let done = node.subscriber::<EventMsg>().unwrap();
+    let frames = node.publisher::<OverheadFrame>().unwrap();
+    let states = node.publisher::<BaseStateMsg>().unwrap();
+    let header = OverheadFrameHeader {
+        frame_id: 42,
+        stamp_ns: 1,
+        width_px: 64,
+        height_px: 64,
+        metres_per_px: 0.0625,
+        left_x_m: -2.0,
+        top_y_m: 8.0,
+    };
+    let pixels: Vec<u8> = (0..64 * 64).map(|i| (i * 7 % 256) as u8).collect();
+    frames
+        .publish_with(|frame| frame.set_image(header, &pixels).unwrap())
+        .unwrap();
+    states
+        .publish_with(|state| {
+            state.seq = 11;
+            state.set_mode(BaseMode::Standby);
+        })
+        .unwrap();
+    // Stay until the parent has read everything (it maps our memory on its receive).
+    let event = done.recv_timeout(Duration::from_secs(20)).unwrap();
+    assert_eq!(event.map(|e| e.kind()), Some(Ok(EventKind::PlanFinished)));
+}
+
+#[test]
+fn services_work_across_two_processes() {
+    let namespace = unique_namespace("xproc");
+    let node = IpcNode::new(&namespace, "parent").unwrap();
+    let frames = node.subscriber::<OverheadFrame>().unwrap();
+    let states = node.subscriber::<BaseStateMsg>().unwrap();
+    let done = node.publisher::<EventMsg>().unwrap();
+    let mut child = std::process::Command::new(std::env::current_exe().unwrap())
+        .args(["--exact", "child_process_role", "--test-threads", "1"])
+        .env("GROP_IPC_TEST_CHILD_NAMESPACE", &namespace)
+        .stdout(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    let frame = frames
+        .recv_timeout(WAIT)
+        .unwrap()
+        .expect("frame from the child");
+    assert_eq!(frame.header.frame_id, 42);
+    let expected: Vec<u8> = (0..64 * 64).map(|i| (i * 7 % 256) as u8).collect();
+    assert_eq!(frame.image().unwrap(), &expected[..]);
+    let state = states
+        .recv_timeout(WAIT)
+        .unwrap()
+        .expect("state from the child");
+    assert_eq!((state.seq, state.mode()), (11, Ok(BaseMode::Standby)));
+    drop((frame, state));
+    // The child may not have joined `events` when we first publish: repeat until it leaves.
+    let status = loop {
+        done.publish(&EventMsg::new(EventKind::PlanFinished, 2, "parent done"))
+            .unwrap();
+        if let Some(status) = child.try_wait().unwrap() {
+            break status;
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    assert!(status.success(), "child exited with {status}");
+}

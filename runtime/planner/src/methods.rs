@@ -115,6 +115,12 @@ pub struct PlannerConfig {
     pub speed_mps: f64,
     /// Baselines' goal choice.
     pub baseline_goals: BaselineGoals,
+    /// GROP and FCN-Planning: cost legs lazily, PETLON-style (optimistic straight-line costs,
+    /// refined by the motion planner only for the current best plan until it is stable). Same
+    /// argmax as costing every leg (utilities under optimistic costs are upper bounds), far fewer
+    /// motion-planner calls for many objects; the decision's candidate list then holds optimistic
+    /// costs for plans that were never best. Off by default (the paper costs every leg).
+    pub lazy_costs: bool,
 }
 
 impl Default for PlannerConfig {
@@ -127,6 +133,7 @@ impl Default for PlannerConfig {
             no_path_cost_s: 60.0,
             speed_mps: 0.4,
             baseline_goals: BaselineGoals::Paper,
+            lazy_costs: false,
         }
     }
 }
@@ -434,27 +441,41 @@ impl TaskMotionPlanner for Planner {
         let mut refinement_rounds = 1;
         let plan = match self.kind {
             MethodKind::Grop | MethodKind::FcnPlanning => {
+                let enumerate = self.enumerate_or_exact(n);
+                let plans = if enumerate { satisficing_plans(n)? } else { Vec::new() };
                 let mut table = PlanningTable::zeros(n);
                 table.feasibility.copy_from_slice(&location_f);
-                cache.fill_table(&mut table, travel);
-                if self.enumerate_or_exact(n) {
-                    let plans = satisficing_plans(n)?;
-                    let mut argmax = Argmax::new(cfg.success_bonus_r);
-                    candidates.reserve(plans.len());
-                    for p in &plans {
-                        let c = Candidate {
-                            feasibility: table.plan_feasibility(p, cfg.aggregation),
-                            cost_s: table.plan_cost_s(p),
-                        };
-                        // Table values were checked finite, so offers cannot fail.
-                        let row = argmax.offer(c).map_err(|_| TaskPlanError::NotFinite("plan utility"))?;
-                        candidates.push(row);
+                let mut rounds = 0;
+                loop {
+                    rounds += 1;
+                    if cfg.lazy_costs {
+                        fill_estimates(&mut table, &cache, cfg);
+                    } else {
+                        cache.fill_table(&mut table, travel);
                     }
-                    let best = argmax.best().ok_or(TaskPlanError::NoObjects)?.index;
-                    chosen_candidate = Some(best);
-                    plans[best].clone()
-                } else {
-                    optimise(&table, cfg.success_bonus_r, cfg.aggregation)?.plan
+                    let chosen = if enumerate {
+                        let mut argmax = Argmax::new(cfg.success_bonus_r);
+                        candidates.clear();
+                        candidates.reserve(plans.len());
+                        for p in &plans {
+                            let c = Candidate {
+                                feasibility: table.plan_feasibility(p, cfg.aggregation),
+                                cost_s: table.plan_cost_s(p),
+                            };
+                            // Table values are finite, so offers cannot fail.
+                            let row = argmax.offer(c).map_err(|_| TaskPlanError::NotFinite("plan utility"))?;
+                            candidates.push(row);
+                        }
+                        let best = argmax.best().ok_or(TaskPlanError::NoObjects)?.index;
+                        chosen_candidate = Some(best);
+                        plans[best].clone()
+                    } else {
+                        optimise(&table, cfg.success_bonus_r, cfg.aggregation)?.plan
+                    };
+                    if !cfg.lazy_costs || !refine_legs(&chosen, &mut cache, travel) {
+                        refinement_rounds = rounds;
+                        break chosen;
+                    }
                 }
             }
             MethodKind::Petlon => {
@@ -539,38 +560,49 @@ fn petlon(
     travel: &mut dyn TravelTime,
     cfg: PlannerConfig,
 ) -> Result<(TaskPlan, usize), PlanError> {
-    let n = problem.n_objects();
-    let m = 2 * n;
-    let bound = StraightLine { speed_mps: cfg.speed_mps };
-    let estimate = |cache: &LegCache, a: NavNode, b: NavNode| -> f64 {
-        cache
-            .known_s(a, b)
-            .unwrap_or_else(|| bound.time_s(cache.position(a), cache.position(b)).min(cfg.no_path_cost_s))
-    };
-    let mut table = PlanningTable::zeros(n);
+    let mut table = PlanningTable::zeros(problem.n_objects());
     for round in 1.. {
-        table.start_to_station_s = estimate(cache, NavNode::Start, NavNode::Station);
-        for i in 0..m {
-            table.station_to_location_s[i] = estimate(cache, NavNode::Station, NavNode::Goal(i));
-            for j in 0..m {
-                table.location_to_location_s[i * m + j] =
-                    if i / 2 == j / 2 { 0.0 } else { estimate(cache, NavNode::Goal(i), NavNode::Goal(j)) };
-            }
-        }
+        fill_estimates(&mut table, cache, cfg);
         // R = 0 and F = 0: the optimiser minimises cost alone.
         let best = optimise(&table, 0.0, FeasibilityAggregation::Sum)?.plan;
-        let mut refined = false;
-        for (a, b) in plan_legs(&best) {
-            if cache.known_s(a, b).is_none() {
-                cache.leg_s(a, b, travel);
-                refined = true;
-            }
-        }
-        if !refined {
+        if !refine_legs(&best, cache, travel) {
             return Ok((best, round));
         }
     }
     unreachable!("the refinement loop ends: each round refines at least one of finitely many legs")
+}
+
+/// Fills a table's costs with what is known: motion-planner travel times where asked, else the
+/// optimistic straight line at the cruise speed, capped at the no-path penalty (so a lower bound
+/// on the leg's true cost either way).
+fn fill_estimates(table: &mut PlanningTable, cache: &LegCache, cfg: PlannerConfig) {
+    let bound = StraightLine { speed_mps: cfg.speed_mps };
+    let estimate = |a: NavNode, b: NavNode| -> f64 {
+        cache
+            .known_s(a, b)
+            .unwrap_or_else(|| bound.time_s(cache.position(a), cache.position(b)).min(cfg.no_path_cost_s))
+    };
+    let m = 2 * table.n_objects;
+    table.start_to_station_s = estimate(NavNode::Start, NavNode::Station);
+    for i in 0..m {
+        table.station_to_location_s[i] = estimate(NavNode::Station, NavNode::Goal(i));
+        for j in 0..m {
+            table.location_to_location_s[i * m + j] =
+                if i / 2 == j / 2 { 0.0 } else { estimate(NavNode::Goal(i), NavNode::Goal(j)) };
+        }
+    }
+}
+
+/// Asks the motion planner for every leg of `plan` not yet known; true if any was asked.
+fn refine_legs(plan: &TaskPlan, cache: &mut LegCache, travel: &mut dyn TravelTime) -> bool {
+    let mut refined = false;
+    for (a, b) in plan_legs(plan) {
+        if cache.known_s(a, b).is_none() {
+            cache.leg_s(a, b, travel);
+            refined = true;
+        }
+    }
+    refined
 }
 
 #[cfg(test)]

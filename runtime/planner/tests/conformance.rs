@@ -15,6 +15,8 @@ fn configs() -> Vec<PlannerConfig> {
         d,
         PlannerConfig { aggregation: FeasibilityAggregation::Product, goal_draws: 4, ..d },
         PlannerConfig { baseline_goals: BaselineGoals::AuthorsCode, search: SearchMode::Exact, ..d },
+        PlannerConfig { lazy_costs: true, ..d },
+        PlannerConfig { lazy_costs: true, search: SearchMode::Exact, aggregation: FeasibilityAggregation::Product, ..d },
     ]
 }
 
@@ -151,4 +153,23 @@ fn smp_goals_beat_uniform_goals_on_average() {
     };
     assert!(mean_heat(MethodKind::Grop) > mean_heat(MethodKind::FcnPlanning));
     let _ = location_index(0, world::Side::Near);
+}
+
+/// Lazy costing finds the same utility as costing every leg, with no more motion-planner calls.
+#[test]
+fn lazy_costs_keep_the_argmax() {
+    for seed in 0..30u64 {
+        let n = 1 + (seed as usize % 4);
+        let problem = common::random_problem(n, 5000 + seed);
+        for search in [SearchMode::Enumerate, SearchMode::Exact] {
+            let full_cfg = PlannerConfig { search, ..PlannerConfig::default() };
+            let lazy_cfg = PlannerConfig { lazy_costs: true, ..full_cfg };
+            let mut o1 = common::DetourOracle { speed_mps: 0.4, salt: seed, no_path: 0.1, calls: 0 };
+            let mut o2 = common::DetourOracle { speed_mps: 0.4, salt: seed, no_path: 0.1, calls: 0 };
+            let full = Planner::new(MethodKind::Grop, full_cfg).plan(&problem, &mut o1, seed).unwrap();
+            let lazy = Planner::new(MethodKind::Grop, lazy_cfg).plan(&problem, &mut o2, seed).unwrap();
+            assert!((full.utility - lazy.utility).abs() < 1e-7, "seed {seed}: {} vs {}", full.utility, lazy.utility);
+            assert!(lazy.motion_planner_calls <= full.motion_planner_calls);
+        }
+    }
 }

@@ -30,7 +30,11 @@ fn bench(c: &mut Criterion) {
     )];
     let goal = Point3::new(0.0, 6.0, 1.3);
     for (name, offset) in [("reachable_0.7m", 0.7), ("out_of_reach_1.2m", 1.2)] {
-        let base = BasePose { x_m: 0.0, y_m: 6.0 - offset, yaw_rad: FRAC_PI_2 };
+        let base = BasePose {
+            x_m: 0.0,
+            y_m: 6.0 - offset,
+            yaw_rad: FRAC_PI_2,
+        };
         group.bench_function(name, |b| {
             b.iter(|| black_box(plan_place(&cfg, black_box(base), goal, &table)))
         });
@@ -40,8 +44,12 @@ fn bench(c: &mut Criterion) {
     let arm = Ur5e::default();
     let q = [0.4, -1.2, 1.1, -1.3, 1.0, 0.6];
     let pose: Isometry3<f64> = arm.forward(&q);
-    c.bench_function("ur5e/forward", |b| b.iter(|| black_box(arm.forward(black_box(&q)))));
-    c.bench_function("ur5e/inverse", |b| b.iter(|| black_box(arm.inverse(black_box(&pose)))));
+    c.bench_function("ur5e/forward", |b| {
+        b.iter(|| black_box(arm.forward(black_box(&q))))
+    });
+    c.bench_function("ur5e/inverse", |b| {
+        b.iter(|| black_box(arm.inverse(black_box(&pose))))
+    });
 }
 
 criterion_group!(benches, bench);

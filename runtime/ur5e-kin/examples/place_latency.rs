@@ -30,7 +30,10 @@ fn main() {
     latencies_ns.sort_unstable();
     let pct = |p: f64| latencies_ns[((latencies_ns.len() - 1) as f64 * p) as usize] as f64 / 1e3;
     let n = queries.len();
-    println!("{n} plan_place calls in {total_s:.3} s on one core: {:.0} calls/s", n as f64 / total_s);
+    println!(
+        "{n} plan_place calls in {total_s:.3} s on one core: {:.0} calls/s",
+        n as f64 / total_s
+    );
     println!(
         "latency us: p50 {:.2}  p90 {:.2}  p99 {:.2}  max {:.2}",
         pct(0.5),

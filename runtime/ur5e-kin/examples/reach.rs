@@ -10,18 +10,25 @@ use ur5e_kin::{BasePose, PlaceConfig, plan_place};
 
 /// Farthest reachable goal straight ahead of the arm base axis, scanned at 1 mm [m].
 fn reach_m(cfg: &PlaceConfig, z_m: f64) -> Option<f64> {
-    let base = BasePose { x_m: 0.0, y_m: 0.0, yaw_rad: FRAC_PI_2 };
+    let base = BasePose {
+        x_m: 0.0,
+        y_m: 0.0,
+        yaw_rad: FRAC_PI_2,
+    };
     let axis_y = cfg.mount.forward_m;
     (0..1500)
+        .rev()
         .map(|mm| axis_y + mm as f64 * 0.001)
-        .filter(|y| plan_place(cfg, base, Point3::new(0.0, *y, z_m), &[]).is_ok())
-        .last()
+        .find(|y| plan_place(cfg, base, Point3::new(0.0, *y, z_m), &[]).is_ok())
         .map(|y| y - axis_y)
 }
 
 fn main() {
     let tilted = PlaceConfig::default();
-    let straight = PlaceConfig { down_tolerance_rad: 0.0, ..PlaceConfig::default() };
+    let straight = PlaceConfig {
+        down_tolerance_rad: 0.0,
+        ..PlaceConfig::default()
+    };
     println!(
         "mount: {:.2} m forward, {:.2} m high; TCP {:.2} m; tolerance {:.1} deg",
         tilted.mount.forward_m,
@@ -32,6 +39,10 @@ fn main() {
     println!("object z [m] | reach straight down [m] | reach within tolerance [m]");
     for z in [1.1, 1.2, 1.3, 1.4, 1.5] {
         let fmt = |r: Option<f64>| r.map_or("-".to_string(), |r| format!("{r:.3}"));
-        println!("{z:.1} | {} | {}", fmt(reach_m(&straight, z)), fmt(reach_m(&tilted, z)));
+        println!(
+            "{z:.1} | {} | {}",
+            fmt(reach_m(&straight, z)),
+            fmt(reach_m(&tilted, z))
+        );
     }
 }

@@ -72,7 +72,11 @@ pub fn dinner_table_queries(
                         half_extents: Vector3::new(0.30, 0.275, 0.5 * cfg.mount.height_m),
                         yaw_rad: base.yaw_rad,
                     });
-                    out.push(PlaceQuery { base, goal: Point3::new(target_x, 6.0, 1.3), obstacles });
+                    out.push(PlaceQuery {
+                        base,
+                        goal: Point3::new(target_x, 6.0, 1.3),
+                        obstacles,
+                    });
                 }
             }
         }

@@ -69,6 +69,28 @@ proptest! {
     }
 }
 
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(1000))]
+
+    /// Near the wrist singularity (q5 ~ 0) and the stretched elbow (q3 ~ 0) the solutions still
+    /// reproduce the pose (q6 may differ from the original: there it is not unique).
+    #[test]
+    fn ik_is_accurate_near_singularities(
+        q1 in -PI..PI, q2 in -PI..PI, q3 in -0.02..0.02f64, q4 in -PI..PI,
+        q5 in -0.02..0.02f64, q6 in -PI..PI,
+    ) {
+        let arm = Ur5e::default();
+        let q = [q1, q2, q3, q4, q5, q6];
+        let pose = arm.forward(&q);
+        let solutions = arm.inverse(&pose);
+        prop_assert!(!solutions.is_empty(), "no solution near singularity for {:?}", q);
+        for s in &solutions {
+            let (dp, dr) = pose_error(&arm.forward(s), &pose);
+            prop_assert!(dp < 1e-6 && dr < 1e-6, "{:?}: {} m {} rad", s, dp, dr);
+        }
+    }
+}
+
 #[test]
 fn generic_pose_has_eight_distinct_solutions() {
     let arm = Ur5e::default();

@@ -42,7 +42,11 @@ fn placement_and_ik_do_not_allocate() {
     let goal = Point3::new(0.0, 6.0, 1.3);
     let poses: Vec<BasePose> = [0.5, 0.7, 0.9, 1.1, 1.3]
         .iter()
-        .map(|off| BasePose { x_m: 0.1, y_m: 6.0 - off, yaw_rad: FRAC_PI_2 })
+        .map(|off| BasePose {
+            x_m: 0.1,
+            y_m: 6.0 - off,
+            yaw_rad: FRAC_PI_2,
+        })
         .collect();
     let q = [0.4, -1.2, 1.1, -1.3, 1.0, 0.6];
     let flange = arm.forward(&q);

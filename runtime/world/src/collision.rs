@@ -3,7 +3,7 @@
 use nalgebra::{Point3, Vector3};
 use ur5e_kin::{BasePose, ObstacleBox};
 
-use crate::robot::RobotConfig;
+use crate::robot::{BaseCollisionModel, RobotConfig};
 use crate::scene::{Scene, TABLE_CENTER_Y_M};
 
 /// Obstacles farther than this from the arm's base (m, in the floor plane) cannot be touched by
@@ -15,8 +15,25 @@ pub const ARM_RELEVANCE_RADIUS_M: f64 = 1.6;
 const WALL_THICKNESS_M: f64 = 0.1;
 
 /// Whether the base footprint at `base` touches a table, a chair or a wall (or leaves the room).
-/// Tables count from the floor up: the base cannot drive under a table top.
+/// Tables count from the floor up: the base cannot drive under a table top. With
+/// [`BaseCollisionModel::ChairDiscs`] (the authors' code) the base is a point instead.
 pub fn base_collides(scene: &Scene, robot: &RobotConfig, base: BasePose) -> bool {
+    if let BaseCollisionModel::ChairDiscs { radius_m } = robot.base_collision {
+        let r2 = radius_m * radius_m;
+        return !scene.room.contains(base.x_m, base.y_m)
+            || scene
+                .banquet_table
+                .footprint()
+                .contains_point(base.x_m, base.y_m)
+            || scene
+                .loading_table
+                .footprint()
+                .contains_point(base.x_m, base.y_m)
+            || scene
+                .chairs
+                .iter()
+                .any(|c| (c.x_m - base.x_m).powi(2) + (c.y_m - base.y_m).powi(2) < r2);
+    }
     let footprint = robot.footprint.at(base.x_m, base.y_m, base.yaw_rad);
     !scene.room.contains_rect(&footprint)
         || footprint.overlaps(&scene.banquet_table.footprint())

@@ -29,7 +29,7 @@ pub mod scene;
 pub mod view;
 
 pub use collision::base_collides;
-pub use robot::{BaseFootprint, RobotConfig, RobotError};
+pub use robot::{BaseCollisionModel, BaseFootprint, RobotConfig, RobotError};
 pub use scene::{Chair, InvalidField, Scene, SceneError, UnloadTarget};
 pub use ur5e_kin::{ArmMount, BasePose, ObstacleBox, PlaceConfig};
 pub use view::{Heatmap, Side};

@@ -170,3 +170,50 @@ fn obstacle_boxes_hold_the_base_table_and_near_chairs_only() {
     );
     assert!((boxes[2].center.x - 0.6).abs() < 1e-12);
 }
+
+#[test]
+fn authors_chair_disc_model_is_a_point_robot() {
+    let mut scene = Scene::empty_paper_room();
+    scene.chairs.push(Chair::new(1.0, 4.5, 0.0));
+    let robot = RobotConfig {
+        base_collision: world::BaseCollisionModel::ChairDiscs { radius_m: 0.3 },
+        ..RobotConfig::default()
+    };
+    let facing = std::f64::consts::FRAC_PI_2;
+    // 0.35 m from the chair centre: clear for a point with a 0.3 m disc, not for the footprint.
+    let pose = BasePose {
+        x_m: 1.35,
+        y_m: 4.5,
+        yaw_rad: facing,
+    };
+    assert!(!base_collides(&scene, &robot, pose));
+    assert!(base_collides(&scene, &RobotConfig::default(), pose));
+    assert!(base_collides(
+        &scene,
+        &robot,
+        BasePose {
+            x_m: 1.25,
+            y_m: 4.5,
+            yaw_rad: facing
+        }
+    ));
+    // The point still may not stand on the table.
+    assert!(base_collides(
+        &scene,
+        &robot,
+        BasePose {
+            x_m: 0.0,
+            y_m: 5.9,
+            yaw_rad: facing
+        }
+    ));
+    assert!(!base_collides(
+        &scene,
+        &robot,
+        BasePose {
+            x_m: 0.0,
+            y_m: 5.7,
+            yaw_rad: facing
+        }
+    ));
+}

@@ -234,3 +234,27 @@ fn bad_robot_files_name_the_field() {
         Err(RobotError::Invalid { .. })
     ));
 }
+
+#[test]
+fn base_collision_model_is_checked() {
+    let good = RobotConfig::default().to_toml_string().expect("serialises");
+    let authors = good.replacen(
+        "model = \"footprint\"",
+        "model = \"chair_discs\"\nradius_m = 0.3",
+        1,
+    );
+    let robot =
+        RobotConfig::from_toml_str(&authors, "authors.toml").expect("the authors' model loads");
+    assert_eq!(
+        robot.base_collision,
+        world::BaseCollisionModel::ChairDiscs { radius_m: 0.3 }
+    );
+    let msg = robot_error(&good.replacen(
+        "model = \"footprint\"",
+        "model = \"chair_discs\"\nradius_m = -1.0",
+        1,
+    ));
+    assert!(msg.contains("base_collision.radius_m"), "{msg}");
+    let msg = robot_error(&good.replacen("model = \"footprint\"", "model = \"hovercraft\"", 1));
+    assert!(msg.contains("hovercraft"), "{msg}");
+}
