@@ -100,7 +100,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         let mut grid_travel = GridTravelTime { grid: &grids[s], speed_mps: robot.speed_mps };
         let lazy = Planner::new(MethodKind::Grop, PlannerConfig { lazy_costs: true, ..cfg }).plan(&problem_l, &mut grid_travel, k as u64)?;
         let t8 = Instant::now();
-        anyhow::ensure!((lazy.utility - planned.utility).abs() < 1e-6, "lazy decision differs from the full one");
+        anyhow::ensure!(
+            (lazy.utility - planned.utility).abs() < 1e-6,
+            "lazy decision differs from the full one:\n{}\n{}",
+            planned.explain(3),
+            lazy.explain(3)
+        );
         if k >= warmup {
             lazy3.ms.push((t8 - t7).as_secs_f64() * 1e3);
             lazy3_calls += lazy.motion_planner_calls;

@@ -311,4 +311,41 @@ mod tests {
         }];
         assert!(!capsules_collide(&c, &[]));
     }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(3000))]
+
+        /// The capsule test agrees with the distance from 2001 points along the segment,
+        /// outside a 1 mm band around the radius (where sampling itself is inexact).
+        #[test]
+        fn capsule_test_matches_dense_sampling(
+            ax in -2.0..2.0f64, ay in -2.0..2.0f64, az in -2.0..2.0f64,
+            bx in -2.0..2.0f64, by in -2.0..2.0f64, bz in -2.0..2.0f64,
+            hx in 0.05..1.0f64, hy in 0.05..1.0f64, hz in 0.05..1.0f64,
+            yaw in -3.2..3.2f64, r in 0.01..0.5f64,
+        ) {
+            let b = ObstacleBox {
+                center: Point3::new(0.1, -0.2, 0.3),
+                half_extents: v(hx, hy, hz),
+                yaw_rad: yaw,
+            };
+            let (a, e) = (v(ax, ay, az), v(bx, by, bz));
+            let (sy, cy) = yaw.sin_cos();
+            let min_dist = (0..=2000)
+                .map(|k| {
+                    let p = a + (e - a) * (k as f64 / 2000.0);
+                    point_aabb_sq(&b.point_in_box_frame(&p, sy, cy), &b.half_extents).sqrt()
+                })
+                .fold(f64::INFINITY, f64::min);
+            // Sampling overestimates the distance by at most half a sample spacing.
+            let spacing = (e - a).norm() / 2000.0;
+            let hit = b.intersects_capsule(&a, &e, r);
+            if min_dist < r - 1e-3 {
+                proptest::prop_assert!(hit, "missed: sampled distance {} < r {}", min_dist, r);
+            }
+            if min_dist > r + spacing + 1e-3 {
+                proptest::prop_assert!(!hit, "false hit: sampled distance {} > r {}", min_dist, r);
+            }
+        }
+    }
 }

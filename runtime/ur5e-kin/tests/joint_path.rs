@@ -138,3 +138,46 @@ fn exhausted_budget_is_no_path() {
         Err(JointPathError::NoPath { samples: 2 })
     );
 }
+
+#[test]
+fn from_upright_carry_pose_to_a_table_placement() {
+    use core::f64::consts::FRAC_PI_2;
+    // The planner crate's carry pose: upper arm and forearm straight up.
+    let carry: Joints = [0.0, -FRAC_PI_2, 0.0, -FRAC_PI_2, 0.0, 0.0];
+    let cfg = PlaceConfig::default();
+    for (offset, dx) in [(0.6, 0.0), (0.8, 0.3), (0.9, -0.2)] {
+        let base = BasePose {
+            x_m: dx,
+            y_m: 6.0 - offset,
+            yaw_rad: FRAC_PI_2,
+        };
+        let obs = vec![
+            ObstacleBox::from_min_max(Point3::new(-1.5, 5.8, 0.0), Point3::new(1.5, 6.2, 1.0)),
+            ObstacleBox {
+                center: Point3::new(base.x_m, base.y_m, 0.5 * cfg.mount.height_m),
+                half_extents: Vector3::new(0.30, 0.275, 0.5 * cfg.mount.height_m),
+                yaw_rad: base.yaw_rad,
+            },
+        ];
+        assert!(
+            !arm_collides(&cfg, base, &carry, &obs),
+            "carry pose must be free"
+        );
+        let place = plan_place(&cfg, base, Point3::new(0.0, 6.0, 1.3), &obs).expect("place");
+        let path = plan_joint_path(&cfg, base, &carry, &place.joints, &obs, 1).expect("path");
+        assert_eq!(path.first(), Some(&carry));
+        assert_eq!(path.last(), Some(&place.joints));
+        for w in path.windows(2) {
+            let d = w[0]
+                .iter()
+                .zip(&w[1])
+                .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
+            let steps = (d / 0.01).ceil().max(1.0) as usize;
+            for k in 0..=steps {
+                let t = k as f64 / steps as f64;
+                let q: Joints = core::array::from_fn(|i| w[0][i] + (w[1][i] - w[0][i]) * t);
+                assert!(!arm_collides(&cfg, base, &q, &obs), "collision at {q:?}");
+            }
+        }
+    }
+}
