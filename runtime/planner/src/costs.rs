@@ -71,7 +71,8 @@ pub enum NavNode {
 }
 
 /// Travel times between the nodes of one task, asked of the motion planner at most once per
-/// unordered pair (paths on the grid are taken as direction-independent), with a count of the
+/// unordered pair (asked in one canonical direction, so the answer does not depend on who asked
+/// first), with a count of the
 /// calls made. A leg without a path costs `no_path_cost_s`.
 #[derive(Debug, Clone)]
 pub struct LegCache {
@@ -132,6 +133,10 @@ impl LegCache {
             return t;
         }
         self.calls += 1;
+        // Always ask in the canonical direction (lower node first): an any-angle grid planner's
+        // path length can differ by a cell or so between directions, and the cost of a leg must
+        // not depend on which plan asked for it first.
+        let (a, b) = if Self::index(a) <= Self::index(b) { (a, b) } else { (b, a) };
         let t = match travel.travel_time_s(self.position(a), self.position(b)) {
             Some(t) if t.is_finite() => t,
             _ => {
@@ -251,6 +256,26 @@ mod tests {
         cache.fill_table(&mut table, &mut oracle);
         assert_eq!(oracle.0, 19);
         assert_eq!(cache.leg_s(NavNode::Goal(1), NavNode::Goal(1), &mut oracle), 0.0);
+    }
+
+    /// An oracle whose answer depends on direction: the cache must give the same value whichever
+    /// direction is asked first.
+    struct Asymmetric;
+    impl TravelTime for Asymmetric {
+        fn travel_time_s(&mut self, from: (f64, f64), to: (f64, f64)) -> Option<f64> {
+            Some(if from.0 < to.0 { 1.0 } else { 2.0 })
+        }
+    }
+
+    #[test]
+    fn leg_cost_does_not_depend_on_request_order() {
+        let p = problem(1);
+        let goals = vec![(5.0, 5.0), (7.0, 7.0)];
+        let mut c1 = LegCache::new(&p, &goals, 60.0);
+        let mut c2 = LegCache::new(&p, &goals, 60.0);
+        let x = c1.leg_s(NavNode::Goal(0), NavNode::Goal(1), &mut Asymmetric);
+        let y = c2.leg_s(NavNode::Goal(1), NavNode::Goal(0), &mut Asymmetric);
+        assert_eq!(x, y);
     }
 
     #[test]

@@ -149,8 +149,16 @@ pub struct ArmCollisionModel {
     pub wrist_radius_m: f64,
     /// Wrist 3, coupling and gripper body down to the tool centre point [m].
     pub gripper_radius_m: f64,
+    /// Base and shoulder housing, arm base to joint 2, for self-collision [m] (UR5e base
+    /// about 0.15 m across).
+    #[serde(default = "default_base_radius_m")]
+    pub base_radius_m: f64,
     /// Added to every radius: clearance demanded from obstacles [m].
     pub margin_m: f64,
+}
+
+fn default_base_radius_m() -> f64 {
+    0.075
 }
 
 impl Default for ArmCollisionModel {
@@ -162,6 +170,7 @@ impl Default for ArmCollisionModel {
             forearm_offset_m: 0.007,
             wrist_radius_m: 0.045,
             gripper_radius_m: 0.05,
+            base_radius_m: default_base_radius_m(),
             margin_m: 0.01,
         }
     }
@@ -233,6 +242,78 @@ impl ArmCollisionModel {
     }
 }
 
+/// Squared distance between segments `p1`-`q1` and `p2`-`q2` (closest points by clamped
+/// parameters, the classic construction for two segments).
+pub fn segment_segment_sq(
+    p1: &Vector3<f64>,
+    q1: &Vector3<f64>,
+    p2: &Vector3<f64>,
+    q2: &Vector3<f64>,
+) -> f64 {
+    let d1 = q1 - p1;
+    let d2 = q2 - p2;
+    let r = p1 - p2;
+    let a = d1.dot(&d1);
+    let e = d2.dot(&d2);
+    let f = d2.dot(&r);
+    const EPS: f64 = 1e-18;
+    let (s, t) = if a <= EPS && e <= EPS {
+        (0.0, 0.0)
+    } else if a <= EPS {
+        (0.0, (f / e).clamp(0.0, 1.0))
+    } else {
+        let c = d1.dot(&r);
+        if e <= EPS {
+            ((-c / a).clamp(0.0, 1.0), 0.0)
+        } else {
+            let b = d1.dot(&d2);
+            let denom = a * e - b * b;
+            let mut s = if denom > EPS { ((b * f - c * e) / denom).clamp(0.0, 1.0) } else { 0.0 };
+            let mut t = (b * s + f) / e;
+            if t < 0.0 {
+                t = 0.0;
+                s = (-c / a).clamp(0.0, 1.0);
+            } else if t > 1.0 {
+                t = 1.0;
+                s = ((b - c) / a).clamp(0.0, 1.0);
+            }
+            (s, t)
+        }
+    };
+    let c1 = p1 + d1 * s;
+    let c2 = p2 + d2 * t;
+    (c1 - c2).norm_squared()
+}
+
+impl ArmCollisionModel {
+    /// Whether non-adjacent links of the arm touch each other: gripper and wrist 2 against the
+    /// upper arm, gripper against the forearm, and gripper, wrist 2 and forearm against the
+    /// base column (DH origin 0 to joint 2, radius `base_radius_m`). `capsules` are those of
+    /// [`ArmCollisionModel::capsules`] and `column` the base column in the same frame. The
+    /// obstacle margin is not applied between the arm's own links.
+    pub fn self_collides(&self, capsules: &[Capsule; ARM_CAPSULES], column: &Capsule) -> bool {
+        const PAIRS: [(usize, usize); 3] = [(4, 0), (4, 1), (3, 0)];
+        let m = self.margin_m;
+        let touch = |x: &Capsule, y: &Capsule| {
+            let reach = (x.radius_m - m) + (y.radius_m - m);
+            segment_segment_sq(&x.a, &x.b, &y.a, &y.b) < reach * reach
+        };
+        PAIRS.iter().any(|&(i, j)| touch(&capsules[i], &capsules[j]))
+            || [1, 3, 4].iter().any(|&i| touch(&capsules[i], column))
+    }
+
+    /// The base column (arm base to joint 2) in the world frame, radius including the margin
+    /// (so that [`ArmCollisionModel::self_collides`] treats it like the other capsules).
+    pub fn base_column(&self, arm: &Ur5e, world_from_arm: &Isometry3<f64>) -> Capsule {
+        let w = |v: Vector3<f64>| world_from_arm.transform_point(&Point3::from(v)).coords;
+        Capsule {
+            a: w(Vector3::zeros()),
+            b: w(Vector3::new(0.0, 0.0, arm.d_m[0])),
+            radius_m: self.base_radius_m + self.margin_m,
+        }
+    }
+}
+
 /// Whether any capsule touches the floor (z = 0) or any obstacle.
 pub fn capsules_collide(capsules: &[Capsule], obstacles: &[ObstacleBox]) -> bool {
     for c in capsules {
@@ -294,6 +375,39 @@ mod tests {
         };
         assert!(b.intersects_capsule(&v(-0.2, 0.9, 0.0), &v(0.2, 0.9, 0.0), 0.01));
         assert!(!b.intersects_capsule(&v(0.9, -0.2, 0.0), &v(0.9, 0.2, 0.0), 0.01));
+    }
+
+    #[test]
+    fn segment_distances() {
+        let d = |a: [f64; 3], b: [f64; 3], c: [f64; 3], e: [f64; 3]| {
+            segment_segment_sq(&a.into(), &b.into(), &c.into(), &e.into()).sqrt()
+        };
+        // Crossing at right angles 0.5 apart.
+        assert!((d([-1., 0., 0.], [1., 0., 0.], [0., -1., 0.5], [0., 1., 0.5]) - 0.5).abs() < 1e-12);
+        // Parallel, overlapping.
+        assert!((d([0., 0., 0.], [1., 0., 0.], [0.5, 0.3, 0.], [2., 0.3, 0.]) - 0.3).abs() < 1e-12);
+        // Collinear, apart end to end.
+        assert!((d([0., 0., 0.], [1., 0., 0.], [1.5, 0., 0.], [2., 0., 0.]) - 0.5).abs() < 1e-12);
+        // A point against a segment.
+        assert!((d([0.5, 1., 0.], [0.5, 1., 0.], [0., 0., 0.], [1., 0., 0.]) - 1.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn self_collision_of_folded_and_upright_arms() {
+        let model = ArmCollisionModel::default();
+        let arm = Ur5e::default();
+        let id = Isometry3::identity();
+        let column = model.base_column(&arm, &id);
+        let half_pi = core::f64::consts::FRAC_PI_2;
+        // Upright (the planner's carry pose) and a placing pose: free.
+        for q in [[0.0, -half_pi, 0.0, -half_pi, 0.0, 0.0], [0.3, -1.8, -1.4, -1.5, 1.57, 0.0]] {
+            let caps = model.capsules(&arm, &id, &q, 0.2);
+            assert!(!model.self_collides(&caps, &column), "{q:?}");
+        }
+        // Upper arm up, elbow folded right back, wrist pointing the gripper at the base.
+        let folded = [0.0, -half_pi, 3.0, 0.0, 0.0, 0.0];
+        let caps = model.capsules(&arm, &id, &folded, 0.2);
+        assert!(model.self_collides(&caps, &column));
     }
 
     #[test]

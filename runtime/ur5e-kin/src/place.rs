@@ -278,6 +278,10 @@ impl<'a> ArmScene<'a> {
         let caps = cfg
             .collision
             .capsules(&cfg.arm, &self.world_from_arm, q, cfg.tcp_offset_m);
+        let column = cfg.collision.base_column(&cfg.arm, &self.world_from_arm);
+        if cfg.collision.self_collides(&caps, &column) {
+            return true;
+        }
         if self.all_near {
             return capsules_collide(&caps, self.obstacles);
         }
