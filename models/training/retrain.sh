@@ -17,6 +17,8 @@ target/release/grop datagen --out out/fcn-train --seed 1 --envs 200 --targets-pe
 # --hflip is valid because the default arm mount has no lateral offset; drop it otherwise.
 "$PYTHON" models/training/train.py --data out/fcn-train --out models/psi-fcn.onnx \
     --epochs 30 --batch 32 --lr 3e-3 --hflip --threads 2 --seed 1
+# Reference outputs for the tract-vs-onnxruntime agreement test.
+"$PYTHON" models/training/make_golden.py --data out/fcn-train
 # Quality against fresh ground truth (25 trials per cell) and the model card's thresholds.
 target/release/grop model-eval --model models/psi-fcn.onnx --evaluators fcn,binary,blurred,oracle \
     --scenes 12 --targets 5 --trials 25 --json out/fcn-eval.json

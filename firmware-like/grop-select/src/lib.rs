@@ -99,7 +99,7 @@ pub fn smp_index(values: &[f32], u: f64) -> Option<usize> {
 pub fn smp_best_of(values: &[f32], uniforms: &[f64]) -> Option<usize> {
     let mut best: Option<usize> = None;
     for &u in uniforms {
-        let Some(i) = smp_index(values, u) else { return None };
+        let i = smp_index(values, u)?;
         match best {
             Some(b) if clean(values[b]) >= clean(values[i]) => {}
             _ => best = Some(i),
@@ -178,7 +178,10 @@ impl core::fmt::Display for SelectError {
                 write!(f, "more candidate plans than the decision holds ({n})")
             }
             SelectError::NotFinite(i) => {
-                write!(f, "candidate {i} has a non-finite feasibility, cost or bonus")
+                write!(
+                    f,
+                    "candidate {i} has a non-finite feasibility, cost or bonus"
+                )
             }
         }
     }
@@ -219,7 +222,11 @@ pub struct Argmax {
 impl Argmax {
     /// A fresh argmax for success bonus `R`.
     pub const fn new(success_bonus_r: f64) -> Self {
-        Self { success_bonus_r, best: None, offered: 0 }
+        Self {
+            success_bonus_r,
+            best: None,
+            offered: 0,
+        }
     }
 
     /// Offers the next candidate (its index is the number offered before it). Returns its scored
@@ -236,7 +243,11 @@ impl Argmax {
             index,
             feasibility: candidate.feasibility,
             cost_s: candidate.cost_s,
-            utility: utility(self.success_bonus_r, candidate.feasibility, candidate.cost_s),
+            utility: utility(
+                self.success_bonus_r,
+                candidate.feasibility,
+                candidate.cost_s,
+            ),
         };
         self.offered += 1;
         match &self.best {
@@ -304,10 +315,19 @@ pub fn select<const N: usize>(
     for &c in candidates {
         let row = argmax.offer(c)?;
         // Capacity was checked above.
-        scored.push(row).map_err(|_| SelectError::TooManyCandidates(N))?;
+        scored
+            .push(row)
+            .map_err(|_| SelectError::TooManyCandidates(N))?;
     }
-    let chosen = argmax.best().map(|b| b.index).ok_or(SelectError::NoCandidates)?;
-    Ok(Decision { chosen, success_bonus_r, scored })
+    let chosen = argmax
+        .best()
+        .map(|b| b.index)
+        .ok_or(SelectError::NoCandidates)?;
+    Ok(Decision {
+        chosen,
+        success_bonus_r,
+        scored,
+    })
 }
 
 #[cfg(test)]
@@ -363,34 +383,64 @@ mod tests {
     #[test]
     fn utility_and_aggregation() {
         assert_eq!(utility(40.0, 0.5, 12.0), 8.0);
-        assert_eq!(plan_feasibility(FeasibilityAggregation::Sum, &[0.5, 0.25]), 0.75);
-        assert_eq!(plan_feasibility(FeasibilityAggregation::Product, &[0.5, 0.25]), 0.125);
+        assert_eq!(
+            plan_feasibility(FeasibilityAggregation::Sum, &[0.5, 0.25]),
+            0.75
+        );
+        assert_eq!(
+            plan_feasibility(FeasibilityAggregation::Product, &[0.5, 0.25]),
+            0.125
+        );
         assert_eq!(plan_feasibility(FeasibilityAggregation::Product, &[]), 1.0);
-        assert_eq!(FeasibilityAggregation::default(), FeasibilityAggregation::Sum);
+        assert_eq!(
+            FeasibilityAggregation::default(),
+            FeasibilityAggregation::Sum
+        );
     }
 
     #[test]
     fn tie_break_prefers_lower_cost_then_lower_index() {
         // All three have U = 10; candidate 1 and 2 are cheaper than 0, 1 comes first.
         let c = [
-            Candidate { feasibility: 1.0, cost_s: 30.0 },
-            Candidate { feasibility: 0.75, cost_s: 20.0 },
-            Candidate { feasibility: 0.75, cost_s: 20.0 },
+            Candidate {
+                feasibility: 1.0,
+                cost_s: 30.0,
+            },
+            Candidate {
+                feasibility: 0.75,
+                cost_s: 20.0,
+            },
+            Candidate {
+                feasibility: 0.75,
+                cost_s: 20.0,
+            },
         ];
         let d: Decision<4> = select(40.0, &c).unwrap();
         assert_eq!(d.chosen, 1);
         assert_eq!(d.margin(), Some(0.0));
         // Below the tie tolerance the cost rule still decides.
         let c = [
-            Candidate { feasibility: 1.0, cost_s: 30.0 },
-            Candidate { feasibility: 0.75, cost_s: 20.0 + 1e-12 },
+            Candidate {
+                feasibility: 1.0,
+                cost_s: 30.0,
+            },
+            Candidate {
+                feasibility: 0.75,
+                cost_s: 20.0 + 1e-12,
+            },
         ];
         let d: Decision<4> = select(40.0, &c).unwrap();
         assert_eq!(d.chosen, 1);
         // A real utility difference wins over a lower cost.
         let c = [
-            Candidate { feasibility: 1.0, cost_s: 29.0 },
-            Candidate { feasibility: 0.75, cost_s: 20.0 },
+            Candidate {
+                feasibility: 1.0,
+                cost_s: 29.0,
+            },
+            Candidate {
+                feasibility: 0.75,
+                cost_s: 20.0,
+            },
         ];
         let d: Decision<4> = select(40.0, &c).unwrap();
         assert_eq!(d.chosen, 0);
@@ -400,9 +450,18 @@ mod tests {
     #[test]
     fn decision_explains_every_candidate() {
         let c = [
-            Candidate { feasibility: 0.2, cost_s: 5.0 },
-            Candidate { feasibility: 0.9, cost_s: 30.0 },
-            Candidate { feasibility: 0.8, cost_s: 10.0 },
+            Candidate {
+                feasibility: 0.2,
+                cost_s: 5.0,
+            },
+            Candidate {
+                feasibility: 0.9,
+                cost_s: 30.0,
+            },
+            Candidate {
+                feasibility: 0.8,
+                cost_s: 10.0,
+            },
         ];
         let d: Decision<3> = select(40.0, &c).unwrap();
         assert_eq!(d.scored.len(), 3);
@@ -419,25 +478,61 @@ mod tests {
 
     #[test]
     fn errors() {
-        assert_eq!(select::<4>(40.0, &[]).unwrap_err(), SelectError::NoCandidates);
-        let c = [Candidate { feasibility: 0.0, cost_s: 0.0 }; 5];
-        assert_eq!(select::<4>(40.0, &c).unwrap_err(), SelectError::TooManyCandidates(4));
+        assert_eq!(
+            select::<4>(40.0, &[]).unwrap_err(),
+            SelectError::NoCandidates
+        );
+        let c = [Candidate {
+            feasibility: 0.0,
+            cost_s: 0.0,
+        }; 5];
+        assert_eq!(
+            select::<4>(40.0, &c).unwrap_err(),
+            SelectError::TooManyCandidates(4)
+        );
         let c = [
-            Candidate { feasibility: 0.0, cost_s: 0.0 },
-            Candidate { feasibility: f64::NAN, cost_s: 0.0 },
+            Candidate {
+                feasibility: 0.0,
+                cost_s: 0.0,
+            },
+            Candidate {
+                feasibility: f64::NAN,
+                cost_s: 0.0,
+            },
         ];
-        assert_eq!(select::<4>(40.0, &c).unwrap_err(), SelectError::NotFinite(1));
-        let c = [Candidate { feasibility: 0.0, cost_s: f64::INFINITY }];
-        assert_eq!(select::<4>(40.0, &c).unwrap_err(), SelectError::NotFinite(0));
-        assert_eq!(select::<4>(f64::NAN, &c[..0]).unwrap_err(), SelectError::NoCandidates);
+        assert_eq!(
+            select::<4>(40.0, &c).unwrap_err(),
+            SelectError::NotFinite(1)
+        );
+        let c = [Candidate {
+            feasibility: 0.0,
+            cost_s: f64::INFINITY,
+        }];
+        assert_eq!(
+            select::<4>(40.0, &c).unwrap_err(),
+            SelectError::NotFinite(0)
+        );
+        assert_eq!(
+            select::<4>(f64::NAN, &c[..0]).unwrap_err(),
+            SelectError::NoCandidates
+        );
     }
 
     #[test]
     fn streaming_argmax_matches_select() {
         let c = [
-            Candidate { feasibility: 0.4, cost_s: 3.0 },
-            Candidate { feasibility: 0.6, cost_s: 11.0 },
-            Candidate { feasibility: 0.6, cost_s: 10.0 },
+            Candidate {
+                feasibility: 0.4,
+                cost_s: 3.0,
+            },
+            Candidate {
+                feasibility: 0.6,
+                cost_s: 11.0,
+            },
+            Candidate {
+                feasibility: 0.6,
+                cost_s: 10.0,
+            },
         ];
         let mut a = Argmax::new(40.0);
         assert!(a.best().is_none());

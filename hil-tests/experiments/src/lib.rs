@@ -29,8 +29,12 @@ pub mod plot;
 use std::path::{Path, PathBuf};
 
 use planner::costs::GridTravelTime;
-use planner::feasibility::{FeasibilityError, FeasibilityEvaluator, FeasibilityQuery, check_output_count};
-use planner::methods::{MethodKind, PlanError, PlannedTask, Planner, PlannerConfig, TaskMotionPlanner};
+use planner::feasibility::{
+    FeasibilityError, FeasibilityEvaluator, FeasibilityQuery, check_output_count,
+};
+use planner::methods::{
+    MethodKind, PlanError, PlannedTask, Planner, PlannerConfig, TaskMotionPlanner,
+};
 use planner::problem::{CANDIDATE_CELLS, TaskProblem, candidate_cells};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -106,13 +110,17 @@ impl EvalConfig {
     /// Checks the values a user can set.
     pub fn check(&self) -> Result<(), EvalError> {
         let bad = |s: &str| Err(EvalError::Config(s.to_string()));
-        if self.chair_counts.is_empty() || self.scenes_per_chair_count == 0 || self.tasks_per_scene == 0 {
+        if self.chair_counts.is_empty()
+            || self.scenes_per_chair_count == 0
+            || self.tasks_per_scene == 0
+        {
             return bad("need at least one chair count, scene and task");
         }
         if self.objects_per_task == 0 || self.objects_per_task > planner::task::MAX_OBJECTS {
             return bad("objects per task must be in 1..=12");
         }
-        let speeds = std::iter::once(self.main_speed_mps).chain(self.sweep_speeds_mps.iter().copied());
+        let speeds =
+            std::iter::once(self.main_speed_mps).chain(self.sweep_speeds_mps.iter().copied());
         for s in speeds {
             if !(s.is_finite() && s > 0.0) {
                 return bad("speeds must be finite and > 0");
@@ -130,7 +138,11 @@ impl EvalConfig {
     /// The (speed, method) pairs to run: every method at the main speed, the sweep methods at the
     /// other sweep speeds.
     pub fn runs(&self) -> Vec<(f64, MethodKind)> {
-        let mut runs: Vec<(f64, MethodKind)> = self.methods.iter().map(|&m| (self.main_speed_mps, m)).collect();
+        let mut runs: Vec<(f64, MethodKind)> = self
+            .methods
+            .iter()
+            .map(|&m| (self.main_speed_mps, m))
+            .collect();
         for &s in &self.sweep_speeds_mps {
             for &m in &self.sweep_methods {
                 if !runs.iter().any(|&(rs, rm)| rs == s && rm == m) {
@@ -216,20 +228,30 @@ impl Workload {
     /// targets each; task k of a scene uses targets `k*3 .. k*3+3`.
     pub fn build(cfg: &EvalConfig) -> Self {
         let n_targets = cfg.tasks_per_scene * cfg.objects_per_task;
-        let mut scenes: Vec<Scene> = if cfg.chair_counts == [15, 20, 25] && cfg.scenes_per_chair_count == 10 {
-            evaluation_suite(cfg.seed, n_targets)
-        } else {
-            cfg.chair_counts
-                .iter()
-                .flat_map(|&c| {
-                    (0..cfg.scenes_per_chair_count as u64).map(move |i| {
-                        world::generate::evaluation_scene(mix_seed(cfg.seed, c as u64, i), c, n_targets)
+        let mut scenes: Vec<Scene> =
+            if cfg.chair_counts == [15, 20, 25] && cfg.scenes_per_chair_count == 10 {
+                evaluation_suite(cfg.seed, n_targets)
+            } else {
+                cfg.chair_counts
+                    .iter()
+                    .flat_map(|&c| {
+                        (0..cfg.scenes_per_chair_count as u64).map(move |i| {
+                            world::generate::evaluation_scene(
+                                mix_seed(cfg.seed, c as u64, i),
+                                c,
+                                n_targets,
+                            )
+                        })
                     })
-                })
-                .collect()
-        };
-        scenes.iter_mut().for_each(|s| s.targets.truncate(n_targets));
-        let grids = scenes.par_iter().map(|s| OccupancyGrid::from_scene(s, &cfg.robot)).collect();
+                    .collect()
+            };
+        scenes
+            .iter_mut()
+            .for_each(|s| s.targets.truncate(n_targets));
+        let grids = scenes
+            .par_iter()
+            .map(|s| OccupancyGrid::from_scene(s, &cfg.robot))
+            .collect();
         let mut tasks = Vec::new();
         for (si, scene) in scenes.iter().enumerate() {
             for k in 0..cfg.tasks_per_scene {
@@ -237,16 +259,24 @@ impl Workload {
                     id: tasks.len(),
                     scene: si,
                     n_chairs: scene.chairs.len(),
-                    target_ids: (k * cfg.objects_per_task..(k + 1) * cfg.objects_per_task).collect(),
+                    target_ids: (k * cfg.objects_per_task..(k + 1) * cfg.objects_per_task)
+                        .collect(),
                 });
             }
         }
-        Self { scenes, grids, tasks }
+        Self {
+            scenes,
+            grids,
+            tasks,
+        }
     }
 
     /// The (x, y, z) of a task's targets.
     pub fn targets(&self, task: &EvalTask) -> Vec<[f64; 3]> {
-        task.target_ids.iter().map(|&t| self.scenes[task.scene].targets[t].as_array()).collect()
+        task.target_ids
+            .iter()
+            .map(|&t| self.scenes[task.scene].targets[t].as_array())
+            .collect()
     }
 }
 
@@ -260,7 +290,10 @@ pub struct HeatmapSet {
 impl HeatmapSet {
     /// The 2n heatmaps of a task in location order.
     pub fn for_task(&self, task: &EvalTask) -> Vec<Heatmap> {
-        task.target_ids.iter().flat_map(|&t| self.maps[task.scene][t].iter().cloned()).collect()
+        task.target_ids
+            .iter()
+            .flat_map(|&t| self.maps[task.scene][t].iter().cloned())
+            .collect()
     }
 }
 
@@ -278,18 +311,36 @@ struct GtCache {
 /// Simulated ground truth for every (scene, target, side) over the candidate area
 /// (`gt_trials_per_cell` trials per cell, seeded), computed in parallel and cached in `cache`
 /// (recomputed when the file was made with other settings).
-pub fn ground_truth(cfg: &EvalConfig, workload: &Workload, cache: Option<&Path>) -> Result<HeatmapSet, EvalError> {
+pub fn ground_truth(
+    cfg: &EvalConfig,
+    workload: &Workload,
+    cache: Option<&Path>,
+) -> Result<HeatmapSet, EvalError> {
     let robot_json = serde_json::to_string(&cfg.robot).unwrap_or_default();
-    let names: Vec<String> = workload.scenes.iter().map(|s| format!("{}:{}", s.name, s.targets.len())).collect();
-    let fingerprint = format!("v1 seed={} trials={} robot={robot_json} scenes={}", cfg.seed, cfg.gt_trials_per_cell, names.join(","));
+    let names: Vec<String> = workload
+        .scenes
+        .iter()
+        .map(|s| format!("{}:{}", s.name, s.targets.len()))
+        .collect();
+    let fingerprint = format!(
+        "v1 seed={} trials={} robot={robot_json} scenes={}",
+        cfg.seed,
+        cfg.gt_trials_per_cell,
+        names.join(",")
+    );
     let jobs: Vec<(usize, usize, Side)> = workload
         .scenes
         .iter()
         .enumerate()
-        .flat_map(|(s, scene)| (0..scene.targets.len()).flat_map(move |t| Side::BOTH.map(|side| (s, t, side))))
+        .flat_map(|(s, scene)| {
+            (0..scene.targets.len()).flat_map(move |t| Side::BOTH.map(|side| (s, t, side)))
+        })
         .collect();
     if let Some(path) = cache.filter(|p| p.exists()) {
-        let text = std::fs::read_to_string(path).map_err(|source| EvalError::Io { path: path.to_path_buf(), source })?;
+        let text = std::fs::read_to_string(path).map_err(|source| EvalError::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
         match serde_json::from_str::<GtCache>(&text) {
             Ok(c) if c.fingerprint == fingerprint && c.values.len() == jobs.len() => {
                 if c.values.iter().any(|v| v.len() != CANDIDATE_CELLS) {
@@ -299,29 +350,70 @@ pub fn ground_truth(cfg: &EvalConfig, workload: &Workload, cache: Option<&Path>)
                     });
                 }
                 log::info!("ground truth from cache {}", path.display());
-                return Ok(assemble(workload, &jobs, c.values.iter().map(|v| candidate_heatmap(v)).collect()));
+                return Ok(assemble(
+                    workload,
+                    &jobs,
+                    c.values.iter().map(|v| candidate_heatmap(v)).collect(),
+                ));
             }
-            Ok(_) => log::info!("ground-truth cache {} was made with other settings; recomputing", path.display()),
-            Err(e) => log::warn!("ground-truth cache {} unreadable ({e}); recomputing", path.display()),
+            Ok(_) => log::info!(
+                "ground-truth cache {} was made with other settings; recomputing",
+                path.display()
+            ),
+            Err(e) => log::warn!(
+                "ground-truth cache {} unreadable ({e}); recomputing",
+                path.display()
+            ),
         }
     }
-    log::info!("simulating ground truth: {} heatmaps x {} cells x {} trials", jobs.len(), CANDIDATE_CELLS, cfg.gt_trials_per_cell);
+    log::info!(
+        "simulating ground truth: {} heatmaps x {} cells x {} trials",
+        jobs.len(),
+        CANDIDATE_CELLS,
+        cfg.gt_trials_per_cell
+    );
     let maps: Vec<Heatmap> = jobs
         .par_iter()
         .map(|&(s, t, side)| {
             let scene = &workload.scenes[s];
-            let seed = mix_seed(cfg.seed ^ 0x6774, (s * 1000 + t) as u64, side_index(side) as u64);
-            ground_truth_heatmap(scene, &cfg.robot, scene.targets[t].as_array(), side, cfg.gt_trials_per_cell, seed)
+            let seed = mix_seed(
+                cfg.seed ^ 0x6774,
+                (s * 1000 + t) as u64,
+                side_index(side) as u64,
+            );
+            ground_truth_heatmap(
+                scene,
+                &cfg.robot,
+                scene.targets[t].as_array(),
+                side,
+                cfg.gt_trials_per_cell,
+                seed,
+            )
         })
         .collect();
     if let Some(path) = cache {
-        let values = maps.iter().map(|h| candidate_cells().map(|(r, c)| h.get(r, c)).collect()).collect();
-        let text = serde_json::to_string(&GtCache { fingerprint, values })
-            .map_err(|e| EvalError::Cache { path: path.to_path_buf(), reason: e.to_string() })?;
+        let values = maps
+            .iter()
+            .map(|h| candidate_cells().map(|(r, c)| h.get(r, c)).collect())
+            .collect();
+        let text = serde_json::to_string(&GtCache {
+            fingerprint,
+            values,
+        })
+        .map_err(|e| EvalError::Cache {
+            path: path.to_path_buf(),
+            reason: e.to_string(),
+        })?;
         if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
-            std::fs::create_dir_all(dir).map_err(|source| EvalError::Io { path: dir.to_path_buf(), source })?;
+            std::fs::create_dir_all(dir).map_err(|source| EvalError::Io {
+                path: dir.to_path_buf(),
+                source,
+            })?;
         }
-        std::fs::write(path, text).map_err(|source| EvalError::Io { path: path.to_path_buf(), source })?;
+        std::fs::write(path, text).map_err(|source| EvalError::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
     }
     Ok(assemble(workload, &jobs, maps))
 }
@@ -335,8 +427,11 @@ fn candidate_heatmap(values: &[f32]) -> Heatmap {
 }
 
 fn assemble(workload: &Workload, jobs: &[(usize, usize, Side)], maps: Vec<Heatmap>) -> HeatmapSet {
-    let mut out: Vec<Vec<[Heatmap; 2]>> =
-        workload.scenes.iter().map(|s| vec![[Heatmap::zeros(), Heatmap::zeros()]; s.targets.len()]).collect();
+    let mut out: Vec<Vec<[Heatmap; 2]>> = workload
+        .scenes
+        .iter()
+        .map(|s| vec![[Heatmap::zeros(), Heatmap::zeros()]; s.targets.len()])
+        .collect();
     for (&(s, t, side), h) in jobs.iter().zip(maps) {
         out[s][t][side_index(side)] = h;
     }
@@ -344,7 +439,10 @@ fn assemble(workload: &Workload, jobs: &[(usize, usize, Side)], maps: Vec<Heatma
 }
 
 /// `Psi` for every (scene, target, side) from a feasibility evaluator, in batches of 6 crops.
-pub fn evaluate_heatmaps(workload: &Workload, evaluator: &mut dyn FeasibilityEvaluator) -> Result<HeatmapSet, EvalError> {
+pub fn evaluate_heatmaps(
+    workload: &Workload,
+    evaluator: &mut dyn FeasibilityEvaluator,
+) -> Result<HeatmapSet, EvalError> {
     let robot = RobotConfig::default();
     let mut maps = Vec::with_capacity(workload.scenes.len());
     for scene in &workload.scenes {
@@ -388,7 +486,10 @@ pub struct SimulatedOracle {
 impl SimulatedOracle {
     /// An oracle with its own seed.
     pub fn new(trials_per_cell: u16, seed: u64) -> Self {
-        Self { trials_per_cell: trials_per_cell.max(1), seed }
+        Self {
+            trials_per_cell: trials_per_cell.max(1),
+            seed,
+        }
     }
 }
 
@@ -397,13 +498,24 @@ impl FeasibilityEvaluator for SimulatedOracle {
         "oracle"
     }
 
-    fn evaluate(&mut self, queries: &[FeasibilityQuery<'_>], out: &mut [Heatmap]) -> Result<(), FeasibilityError> {
+    fn evaluate(
+        &mut self,
+        queries: &[FeasibilityQuery<'_>],
+        out: &mut [Heatmap],
+    ) -> Result<(), FeasibilityError> {
         check_output_count(queries, out)?;
         let results: Vec<Heatmap> = queries
             .par_iter()
             .map(|q| {
                 let seed = mix_seed(self.seed, q.target[0].to_bits(), side_index(q.side) as u64);
-                ground_truth_heatmap(q.scene, q.robot, q.target, q.side, self.trials_per_cell, seed)
+                ground_truth_heatmap(
+                    q.scene,
+                    q.robot,
+                    q.target,
+                    q.side,
+                    self.trials_per_cell,
+                    seed,
+                )
             })
             .collect();
         for (o, h) in out.iter_mut().zip(results) {
@@ -444,7 +556,12 @@ pub fn servable_area_m2(truth: &HeatmapSet, task: &EvalTask) -> f64 {
     truth
         .for_task(task)
         .iter()
-        .map(|h| candidate_cells().map(|(r, c)| h.get(r, c) as f64).sum::<f64>() * cell_area)
+        .map(|h| {
+            candidate_cells()
+                .map(|(r, c)| h.get(r, c) as f64)
+                .sum::<f64>()
+                * cell_area
+        })
         .sum()
 }
 
@@ -523,7 +640,12 @@ pub fn execute(
             for u in &planned.plan.unloads {
                 steps.push((u.object, StepOutcome::NoPath));
             }
-            return Execution { steps, placed: 0, time_s, distance_m };
+            return Execution {
+                steps,
+                placed: 0,
+                time_s,
+                distance_m,
+            };
         }
     }
     time_s += cfg.load_time_s * planned.plan.load_order.len() as f64;
@@ -561,7 +683,12 @@ pub fn execute(
             }
         }
     }
-    Execution { steps, placed, time_s, distance_m }
+    Execution {
+        steps,
+        placed,
+        time_s,
+        distance_m,
+    }
 }
 
 /// One (task, speed, method) result: a CSV row.
@@ -601,9 +728,18 @@ pub struct TaskRecord {
 
 /// Plans and executes every task with every (speed, method) of [`EvalConfig::runs`], in parallel
 /// over tasks. `psi` feeds the planners; `truth` only defines difficulty.
-pub fn run(cfg: &EvalConfig, workload: &Workload, psi: &HeatmapSet, truth: &HeatmapSet) -> Result<Vec<TaskRecord>, EvalError> {
+pub fn run(
+    cfg: &EvalConfig,
+    workload: &Workload,
+    psi: &HeatmapSet,
+    truth: &HeatmapSet,
+) -> Result<Vec<TaskRecord>, EvalError> {
     cfg.check()?;
-    let areas: Vec<f64> = workload.tasks.iter().map(|t| servable_area_m2(truth, t)).collect();
+    let areas: Vec<f64> = workload
+        .tasks
+        .iter()
+        .map(|t| servable_area_m2(truth, t))
+        .collect();
     let groups = difficulty_groups(&areas);
     let runs = cfg.runs();
     let per_task: Result<Vec<Vec<TaskRecord>>, EvalError> = workload
@@ -613,18 +749,32 @@ pub fn run(cfg: &EvalConfig, workload: &Workload, psi: &HeatmapSet, truth: &Heat
             let scene = &workload.scenes[task.scene];
             let grid = &workload.grids[task.scene];
             let targets = workload.targets(task);
-            let problem = TaskProblem::from_heatmaps(scene, &cfg.robot, &targets, &psi.for_task(task));
+            let problem =
+                TaskProblem::from_heatmaps(scene, &cfg.robot, &targets, &psi.for_task(task));
             let mut out = Vec::with_capacity(runs.len());
             for &(speed, method) in &runs {
-                let robot = RobotConfig { speed_mps: speed, ..cfg.robot.clone() };
-                let pcfg = PlannerConfig { speed_mps: speed, ..cfg.planner };
-                let mut travel = GridTravelTime { grid, speed_mps: speed };
+                let robot = RobotConfig {
+                    speed_mps: speed,
+                    ..cfg.robot.clone()
+                };
+                let pcfg = PlannerConfig {
+                    speed_mps: speed,
+                    ..cfg.planner
+                };
+                let mut travel = GridTravelTime {
+                    grid,
+                    speed_mps: speed,
+                };
                 // Same seeds for every method: baselines draw the same uniform goals and every
                 // method meets the same noise stream (paired comparison).
                 let plan_seed = mix_seed(cfg.seed, task.id as u64, 0x706c);
                 let planned = Planner::new(method, pcfg)
                     .plan(&problem, &mut travel, plan_seed)
-                    .map_err(|source| EvalError::Plan { method: method.name(), task: task.id, source })?;
+                    .map_err(|source| EvalError::Plan {
+                        method: method.name(),
+                        task: task.id,
+                        source,
+                    })?;
                 let mut rng = ChaCha8Rng::seed_from_u64(mix_seed(cfg.seed, task.id as u64, 0x6578));
                 let exec = execute(cfg, scene, &robot, grid, &problem, &planned, &mut rng);
                 out.push(TaskRecord {
@@ -645,7 +795,14 @@ pub fn run(cfg: &EvalConfig, workload: &Workload, psi: &HeatmapSet, truth: &Heat
                     steps: exec
                         .steps
                         .iter()
-                        .map(|(o, s)| format!("{o}:{}", serde_json::to_string(s).unwrap_or_default().trim_matches('"')))
+                        .map(|(o, s)| {
+                            format!(
+                                "{o}:{}",
+                                serde_json::to_string(s)
+                                    .unwrap_or_default()
+                                    .trim_matches('"')
+                            )
+                        })
                         .collect::<Vec<_>>()
                         .join("|"),
                 });
@@ -689,9 +846,15 @@ pub fn write_csv(path: &Path, records: &[TaskRecord]) -> Result<(), EvalError> {
 /// Writes a text file, creating its folder.
 pub fn write_file(path: &Path, text: &str) -> Result<(), EvalError> {
     if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
-        std::fs::create_dir_all(dir).map_err(|source| EvalError::Io { path: dir.to_path_buf(), source })?;
+        std::fs::create_dir_all(dir).map_err(|source| EvalError::Io {
+            path: dir.to_path_buf(),
+            source,
+        })?;
     }
-    std::fs::write(path, text).map_err(|source| EvalError::Io { path: path.to_path_buf(), source })
+    std::fs::write(path, text).map_err(|source| EvalError::Io {
+        path: path.to_path_buf(),
+        source,
+    })
 }
 
 /// Aggregate of a set of records.
@@ -722,14 +885,22 @@ impl Stats {
         let objects: usize = rs.iter().map(|r| r.objects).sum();
         let placed: usize = rs.iter().map(|r| r.placed).sum();
         let mean_time_s = rs.iter().map(|r| r.time_s).sum::<f64>() / n;
-        let var = rs.iter().map(|r| (r.time_s - mean_time_s).powi(2)).sum::<f64>() / n;
+        let var = rs
+            .iter()
+            .map(|r| (r.time_s - mean_time_s).powi(2))
+            .sum::<f64>()
+            / n;
         Stats {
             tasks: rs.len(),
             completion: placed as f64 / objects.max(1) as f64,
             all_placed: rs.iter().filter(|r| r.placed == r.objects).count() as f64 / n,
             mean_time_s,
             std_time_s: var.sqrt(),
-            mean_calls: rs.iter().map(|r| r.motion_planner_calls as f64).sum::<f64>() / n,
+            mean_calls: rs
+                .iter()
+                .map(|r| r.motion_planner_calls as f64)
+                .sum::<f64>()
+                / n,
         }
     }
 }
@@ -749,14 +920,18 @@ impl Summary {
     /// Aggregates records.
     pub fn from_records(cfg: &EvalConfig, records: &[TaskRecord]) -> Summary {
         let at = |speed: f64, m: MethodKind| {
-            records.iter().filter(move |r| r.speed_mps == speed && r.method == m.name())
+            records
+                .iter()
+                .filter(move |r| r.speed_mps == speed && r.method == m.name())
         };
         let mut main = Vec::new();
         let mut points = Vec::new();
         for &m in &cfg.methods {
             main.push((m, None, Stats::of(at(cfg.main_speed_mps, m))));
             for d in Difficulty::ALL {
-                let rs: Vec<&TaskRecord> = at(cfg.main_speed_mps, m).filter(|r| r.difficulty == d).collect();
+                let rs: Vec<&TaskRecord> = at(cfg.main_speed_mps, m)
+                    .filter(|r| r.difficulty == d)
+                    .collect();
                 main.push((m, Some(d), Stats::of(rs.iter().copied())));
                 // Each Fig. 5 point is the average of 10 tasks (task id order).
                 for chunk in rs.chunks(10) {
@@ -771,17 +946,27 @@ impl Summary {
                 sweep.push((s, m, Stats::of(at(s, m))));
             }
         }
-        Summary { main, sweep, points }
+        Summary {
+            main,
+            sweep,
+            points,
+        }
     }
 
     /// Stats of a method and group at the main speed.
     pub fn get(&self, m: MethodKind, d: Option<Difficulty>) -> Option<Stats> {
-        self.main.iter().find(|(mm, dd, _)| *mm == m && *dd == d).map(|x| x.2)
+        self.main
+            .iter()
+            .find(|(mm, dd, _)| *mm == m && *dd == d)
+            .map(|x| x.2)
     }
 
     /// Stats of the sweep.
     pub fn sweep_get(&self, speed: f64, m: MethodKind) -> Option<Stats> {
-        self.sweep.iter().find(|(s, mm, _)| *s == speed && *mm == m).map(|x| x.2)
+        self.sweep
+            .iter()
+            .find(|(s, mm, _)| *s == speed && *mm == m)
+            .map(|x| x.2)
     }
 
     /// The issue's expectations, each with whether the measurement supports it.
@@ -812,23 +997,35 @@ impl Summary {
         }
         if let (Some(gs), Some(ps)) = (self.get(g, None), self.get(MethodKind::Petlon, None)) {
             out.push((
-                format!("GROP's time within 10% of PETLON's ({:.1} s vs {:.1} s)", gs.mean_time_s, ps.mean_time_s),
+                format!(
+                    "GROP's time within 10% of PETLON's ({:.1} s vs {:.1} s)",
+                    gs.mean_time_s, ps.mean_time_s
+                ),
                 gs.mean_time_s <= 1.1 * ps.mean_time_s,
             ));
         }
         if let (Some(gs), Some(ds)) = (self.get(g, None), self.get(MethodKind::Dvh, None)) {
             out.push((
-                format!("GROP's time below DVH's ({:.1} s vs {:.1} s)", gs.mean_time_s, ds.mean_time_s),
+                format!(
+                    "GROP's time below DVH's ({:.1} s vs {:.1} s)",
+                    gs.mean_time_s, ds.mean_time_s
+                ),
                 gs.mean_time_s < ds.mean_time_s,
             ));
         }
         let mut speeds = cfg.sweep_speeds_mps.clone();
         speeds.sort_by(f64::total_cmp);
-        let comps: Vec<f64> = speeds.iter().filter_map(|&s| self.sweep_get(s, g).map(|x| x.completion)).collect();
+        let comps: Vec<f64> = speeds
+            .iter()
+            .filter_map(|&s| self.sweep_get(s, g).map(|x| x.completion))
+            .collect();
         if comps.len() >= 2 {
             let rising = comps.windows(2).all(|w| w[1] >= w[0]);
             let txt: Vec<String> = comps.iter().map(|c| format!("{c:.3}")).collect();
-            out.push((format!("GROP's completion rises with speed ({})", txt.join(" -> ")), rising));
+            out.push((
+                format!("GROP's completion rises with speed ({})", txt.join(" -> ")),
+                rising,
+            ));
         }
         out
     }
@@ -842,12 +1039,20 @@ impl Summary {
             "Main comparison at {} m/s: completion (objects placed) / all three placed / mean time (s) ± std\n",
             cfg.main_speed_mps
         );
-        let _ = writeln!(s, "| method | easy | normal | hard | all | decide: nav-planner calls |");
+        let _ = writeln!(
+            s,
+            "| method | easy | normal | hard | all | decide: nav-planner calls |"
+        );
         let _ = writeln!(s, "|---|---|---|---|---|---|");
         for &m in &cfg.methods {
             let cell = |d| {
                 self.get(m, d)
-                    .map(|x| format!("{:.3} / {:.3} / {:.1} ± {:.1}", x.completion, x.all_placed, x.mean_time_s, x.std_time_s))
+                    .map(|x| {
+                        format!(
+                            "{:.3} / {:.3} / {:.1} ± {:.1}",
+                            x.completion, x.all_placed, x.mean_time_s, x.std_time_s
+                        )
+                    })
                     .unwrap_or_default()
             };
             let calls = self.get(m, None).map(|x| x.mean_calls).unwrap_or(0.0);
@@ -863,7 +1068,10 @@ impl Summary {
             );
         }
         if !self.sweep.is_empty() {
-            let _ = writeln!(s, "\nSpeed sweep (Table I), all tasks: completion / mean time (s)\n");
+            let _ = writeln!(
+                s,
+                "\nSpeed sweep (Table I), all tasks: completion / mean time (s)\n"
+            );
             let _ = write!(s, "| speed |");
             for m in &cfg.sweep_methods {
                 let _ = write!(s, " {} |", m.name());
@@ -876,7 +1084,9 @@ impl Summary {
             for &sp in &cfg.sweep_speeds_mps {
                 let _ = write!(s, "| {sp} m/s |");
                 for &m in &cfg.sweep_methods {
-                    let cell = self.sweep_get(sp, m).map(|x| format!("{:.3} / {:.1}", x.completion, x.mean_time_s));
+                    let cell = self
+                        .sweep_get(sp, m)
+                        .map(|x| format!("{:.3} / {:.1}", x.completion, x.mean_time_s));
                     let _ = write!(s, " {} |", cell.unwrap_or_default());
                 }
                 let _ = writeln!(s);
@@ -884,7 +1094,12 @@ impl Summary {
         }
         let _ = writeln!(s, "\nThe issue's expectations, as measured:\n");
         for (text, ok) in self.checks(cfg) {
-            let _ = writeln!(s, "- {} {}", if ok { "holds:" } else { "DOES NOT hold:" }, text);
+            let _ = writeln!(
+                s,
+                "- {} {}",
+                if ok { "holds:" } else { "DOES NOT hold:" },
+                text
+            );
         }
         s
     }
@@ -945,9 +1160,15 @@ mod tests {
 
     #[test]
     fn bad_config_is_reported() {
-        let cfg = EvalConfig { main_speed_mps: 0.0, ..EvalConfig::default() };
+        let cfg = EvalConfig {
+            main_speed_mps: 0.0,
+            ..EvalConfig::default()
+        };
         assert!(matches!(cfg.check(), Err(EvalError::Config(_))));
-        let cfg = EvalConfig { methods: vec![], ..EvalConfig::default() };
+        let cfg = EvalConfig {
+            methods: vec![],
+            ..EvalConfig::default()
+        };
         assert!(matches!(cfg.check(), Err(EvalError::Config(_))));
     }
 }

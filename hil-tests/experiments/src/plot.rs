@@ -30,9 +30,15 @@ fn mean_std(v: &[f64]) -> (f64, f64) {
 
 /// Draws the three panels into an SVG file.
 pub fn fig5_svg(summary: &Summary, methods: &[MethodKind], path: &Path) -> Result<(), EvalError> {
-    let err = |e: &dyn std::fmt::Display| EvalError::Plot { path: path.to_path_buf(), reason: e.to_string() };
+    let err = |e: &dyn std::fmt::Display| EvalError::Plot {
+        path: path.to_path_buf(),
+        reason: e.to_string(),
+    };
     if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
-        std::fs::create_dir_all(dir).map_err(|source| EvalError::Io { path: dir.to_path_buf(), source })?;
+        std::fs::create_dir_all(dir).map_err(|source| EvalError::Io {
+            path: dir.to_path_buf(),
+            source,
+        })?;
     }
     let root = SVGBackend::new(path, (1500, 520)).into_drawing_area();
     root.fill(&WHITE).map_err(|e| err(&e))?;
@@ -56,14 +62,21 @@ pub fn fig5_svg(summary: &Summary, methods: &[MethodKind], path: &Path) -> Resul
             .draw()
             .map_err(|e| err(&e))?;
         for &m in methods {
-            let pts: Vec<(f64, f64)> =
-                summary.points.iter().filter(|p| p.0 == m && p.1 == d).map(|p| (p.2, p.3)).collect();
+            let pts: Vec<(f64, f64)> = summary
+                .points
+                .iter()
+                .filter(|p| p.0 == m && p.1 == d)
+                .map(|p| (p.2, p.3))
+                .collect();
             if pts.is_empty() {
                 continue;
             }
             let c = colour(m);
             chart
-                .draw_series(pts.iter().map(|&(x, y)| Circle::new((x, y), 3, c.mix(0.6).filled())))
+                .draw_series(
+                    pts.iter()
+                        .map(|&(x, y)| Circle::new((x, y), 3, c.mix(0.6).filled())),
+                )
                 .map_err(|e| err(&e))?
                 .label(m.name())
                 .legend(move |(x, y)| Circle::new((x, y), 5, c.filled()));
@@ -75,8 +88,15 @@ pub fn fig5_svg(summary: &Summary, methods: &[MethodKind], path: &Path) -> Resul
                     (mx + sx * t.cos(), my + sy * t.sin())
                 })
                 .collect();
-            chart.draw_series(std::iter::once(Polygon::new(ring.clone(), c.mix(0.15).filled()))).map_err(|e| err(&e))?;
-            chart.draw_series(std::iter::once(PathElement::new(ring, c.stroke_width(2)))).map_err(|e| err(&e))?;
+            chart
+                .draw_series(std::iter::once(Polygon::new(
+                    ring.clone(),
+                    c.mix(0.15).filled(),
+                )))
+                .map_err(|e| err(&e))?;
+            chart
+                .draw_series(std::iter::once(PathElement::new(ring, c.stroke_width(2))))
+                .map_err(|e| err(&e))?;
             chart
                 .draw_series(std::iter::once(Cross::new((mx, my), 6, c.stroke_width(2))))
                 .map_err(|e| err(&e))?;

@@ -1,10 +1,17 @@
 //! A small evaluation end to end: 3 scenes (15/20/25 chairs), 1 task each, every method and the
 //! speed sweep; checks shapes, invariants and reproducibility.
 
-use experiments::{EvalConfig, SimulatedOracle, Summary, Workload, evaluate_heatmaps, ground_truth, run};
+use experiments::{
+    EvalConfig, SimulatedOracle, Summary, Workload, evaluate_heatmaps, ground_truth, run,
+};
 
 fn small() -> EvalConfig {
-    EvalConfig { scenes_per_chair_count: 1, tasks_per_scene: 1, gt_trials_per_cell: 1, ..EvalConfig::default() }
+    EvalConfig {
+        scenes_per_chair_count: 1,
+        tasks_per_scene: 1,
+        gt_trials_per_cell: 1,
+        ..EvalConfig::default()
+    }
 }
 
 #[test]
@@ -41,16 +48,35 @@ fn small_evaluation_runs_and_is_reproducible() {
     assert!(md.contains("0.8 m/s"));
     experiments::write_csv(&dir.path().join("t.csv"), &records).unwrap();
     experiments::plot::fig5_svg(&summary, &cfg.methods, &dir.path().join("f.svg")).unwrap();
-    assert!(std::fs::read_to_string(dir.path().join("f.svg")).unwrap().contains("<svg"));
+    assert!(
+        std::fs::read_to_string(dir.path().join("f.svg"))
+            .unwrap()
+            .contains("<svg")
+    );
 
     let records2 = run(&cfg, &workload, &psi, &truth).unwrap();
-    let key = |r: &experiments::TaskRecord| (r.task, r.method, r.speed_mps.to_bits(), r.placed, r.time_s.to_bits(), r.steps.clone());
-    assert_eq!(records.iter().map(key).collect::<Vec<_>>(), records2.iter().map(key).collect::<Vec<_>>());
+    let key = |r: &experiments::TaskRecord| {
+        (
+            r.task,
+            r.method,
+            r.speed_mps.to_bits(),
+            r.placed,
+            r.time_s.to_bits(),
+            r.steps.clone(),
+        )
+    };
+    assert_eq!(
+        records.iter().map(key).collect::<Vec<_>>(),
+        records2.iter().map(key).collect::<Vec<_>>()
+    );
 }
 
 #[test]
 fn corrupt_cache_is_recomputed_not_trusted() {
-    let cfg = EvalConfig { chair_counts: vec![15], ..small() };
+    let cfg = EvalConfig {
+        chair_counts: vec![15],
+        ..small()
+    };
     let workload = Workload::build(&cfg);
     let dir = tempfile::tempdir().unwrap();
     let cache = dir.path().join("gt.json");

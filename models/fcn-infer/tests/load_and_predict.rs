@@ -172,3 +172,29 @@ fn committed_model_gives_probabilities_for_any_crop() {
         .fold(0.0, f32::max);
     assert!(max_diff < 1e-5, "batch vs single differ by {max_diff}");
 }
+
+#[test]
+fn committed_model_agrees_with_onnxruntime() {
+    // Reference crops and onnxruntime's heatmaps (models/training/make_golden.py).
+    let crops_raw = std::fs::read(fixture("golden_crops.bin")).expect("golden crops");
+    let heat_raw = std::fs::read(fixture("golden_heatmaps.bin")).expect("golden heatmaps");
+    assert_eq!(crops_raw.len() * 4, heat_raw.len());
+    let mut model = FcnModel::load(&committed_model()).expect("models/psi-fcn.onnx loads");
+    let mut out = [0f32; CROP_CELLS];
+    let mut max_diff = 0f32;
+    for (crop, heat) in crops_raw
+        .chunks_exact(CROP_CELLS)
+        .zip(heat_raw.chunks_exact(CROP_CELLS * 4))
+    {
+        let crop: &Crop = crop.try_into().expect("2048 bytes");
+        model.predict(crop, &mut out).expect("predict");
+        for (o, b) in out.iter().zip(heat.chunks_exact(4)) {
+            let want = f32::from_le_bytes([b[0], b[1], b[2], b[3]]);
+            max_diff = max_diff.max((o - want).abs());
+        }
+    }
+    assert!(
+        max_diff < 1e-4,
+        "tract and onnxruntime differ by {max_diff} (rerun make_golden.py after retraining)"
+    );
+}

@@ -57,36 +57,76 @@ impl Samples {
 pub fn run(args: Args) -> anyhow::Result<()> {
     anyhow::ensure!(args.iterations >= 10, "--iterations must be at least 10");
     let robot = world::RobotConfig::default();
-    let mut fcn = FcnEvaluator::load(&args.model).with_context(|| format!("loading {}", args.model.display()))?;
-    let scenes: Vec<world::Scene> =
-        [15usize, 20, 25].iter().map(|&c| world::generate::evaluation_scene(args.seed, c, 30)).collect();
-    let grids: Vec<OccupancyGrid> = scenes.iter().map(|s| OccupancyGrid::from_scene(s, &robot)).collect();
+    let mut fcn = FcnEvaluator::load(&args.model)
+        .with_context(|| format!("loading {}", args.model.display()))?;
+    let scenes: Vec<world::Scene> = [15usize, 20, 25]
+        .iter()
+        .map(|&c| world::generate::evaluation_scene(args.seed, c, 30))
+        .collect();
+    let grids: Vec<OccupancyGrid> = scenes
+        .iter()
+        .map(|s| OccupancyGrid::from_scene(s, &robot))
+        .collect();
     let cfg = PlannerConfig::for_robot(&robot);
     let warmup = 5;
     let total = warmup + args.iterations;
 
-    let mut full3 = Samples { name: "grop-3", what: "full GROP decision, 3 objects (6 crops FCN + 19 A* legs + 288 plans)", ms: vec![] };
-    let mut psi3 = Samples { name: "grop-3/psi", what: "  of which: render 6 crops + FCN + free cells", ms: vec![] };
-    let mut nav3 = Samples { name: "grop-3/nav", what: "  of which: 19 A* navigation costs", ms: vec![] };
-    let mut lazy3 = Samples { name: "grop-3-lazy", what: "full GROP decision, 3 objects, lazy costs (same argmax, fewer A* legs)", ms: vec![] };
+    let mut full3 = Samples {
+        name: "grop-3",
+        what: "full GROP decision, 3 objects (6 crops FCN + 19 A* legs + 288 plans)",
+        ms: vec![],
+    };
+    let mut psi3 = Samples {
+        name: "grop-3/psi",
+        what: "  of which: render 6 crops + FCN + free cells",
+        ms: vec![],
+    };
+    let mut nav3 = Samples {
+        name: "grop-3/nav",
+        what: "  of which: 19 A* navigation costs",
+        ms: vec![],
+    };
+    let mut lazy3 = Samples {
+        name: "grop-3-lazy",
+        what: "full GROP decision, 3 objects, lazy costs (same argmax, fewer A* legs)",
+        ms: vec![],
+    };
     let mut lazy3_calls = 0usize;
-    let mut sel3 = Samples { name: "grop-3/select", what: "  of which: Smp goals + 288 plans scored + argmax (costs cached)", ms: vec![] };
+    let mut sel3 = Samples {
+        name: "grop-3/select",
+        what: "  of which: Smp goals + 288 plans scored + argmax (costs cached)",
+        ms: vec![],
+    };
     for k in 0..total {
         let s = k % scenes.len();
         let scene = &scenes[s];
         let first = (k / scenes.len() * 3) % 27;
-        let targets: Vec<[f64; 3]> = scene.targets[first..first + 3].iter().map(|t| t.as_array()).collect();
+        let targets: Vec<[f64; 3]> = scene.targets[first..first + 3]
+            .iter()
+            .map(|t| t.as_array())
+            .collect();
         let t0 = Instant::now();
-        let problem = TaskProblem::from_world(scene, &robot, &targets, &mut fcn as &mut dyn FeasibilityEvaluator)?;
+        let problem = TaskProblem::from_world(
+            scene,
+            &robot,
+            &targets,
+            &mut fcn as &mut dyn FeasibilityEvaluator,
+        )?;
         let t1 = Instant::now();
-        let mut travel = MemoTravel::new(GridTravelTime { grid: &grids[s], speed_mps: robot.speed_mps });
+        let mut travel = MemoTravel::new(GridTravelTime {
+            grid: &grids[s],
+            speed_mps: robot.speed_mps,
+        });
         let planned = Planner::new(MethodKind::Grop, cfg).plan(&problem, &mut travel, k as u64)?;
         let t2 = Instant::now();
         // The same decision again with every leg already known: selection alone.
         let goals_xy: Vec<(f64, f64)> = planned.goals.iter().map(|g| g.xy).collect();
         let mut cache = LegCache::new(&problem, &goals_xy, cfg.no_path_cost_s);
         let mut table = PlanningTable::zeros(3);
-        let mut grid_only = GridTravelTime { grid: &grids[s], speed_mps: robot.speed_mps };
+        let mut grid_only = GridTravelTime {
+            grid: &grids[s],
+            speed_mps: robot.speed_mps,
+        };
         let t3 = Instant::now();
         cache.fill_table(&mut table, &mut grid_only);
         let t4 = Instant::now();
@@ -94,11 +134,29 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         let t5 = Instant::now();
         let again = Planner::new(MethodKind::Grop, cfg).plan(&problem, &mut travel, k as u64)?;
         let t6 = Instant::now();
-        anyhow::ensure!(again.plan == planned.plan, "cached decision differs from the full one");
+        anyhow::ensure!(
+            again.plan == planned.plan,
+            "cached decision differs from the full one"
+        );
         let t7 = Instant::now();
-        let problem_l = TaskProblem::from_world(scene, &robot, &targets, &mut fcn as &mut dyn FeasibilityEvaluator)?;
-        let mut grid_travel = GridTravelTime { grid: &grids[s], speed_mps: robot.speed_mps };
-        let lazy = Planner::new(MethodKind::Grop, PlannerConfig { lazy_costs: true, ..cfg }).plan(&problem_l, &mut grid_travel, k as u64)?;
+        let problem_l = TaskProblem::from_world(
+            scene,
+            &robot,
+            &targets,
+            &mut fcn as &mut dyn FeasibilityEvaluator,
+        )?;
+        let mut grid_travel = GridTravelTime {
+            grid: &grids[s],
+            speed_mps: robot.speed_mps,
+        };
+        let lazy = Planner::new(
+            MethodKind::Grop,
+            PlannerConfig {
+                lazy_costs: true,
+                ..cfg
+            },
+        )
+        .plan(&problem_l, &mut grid_travel, k as u64)?;
         let t8 = Instant::now();
         anyhow::ensure!(
             (lazy.utility - planned.utility).abs() < 1e-6,
@@ -116,29 +174,78 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
     }
 
-    let mut opt10 = Samples { name: "exact-10/optimiser", what: "exact optimiser alone, 10 objects (sum), table given", ms: vec![] };
-    let mut opt10p = Samples { name: "exact-10/optimiser-product", what: "exact optimiser alone, 10 objects (product), table given", ms: vec![] };
-    let mut full10 = Samples { name: "exact-10", what: "full decision, 10 objects (20 crops FCN + 381 A* legs + optimiser)", ms: vec![] };
-    let mut lazy10 = Samples { name: "exact-10-lazy", what: "full decision, 10 objects, exact optimiser with lazy costs", ms: vec![] };
+    let mut opt10 = Samples {
+        name: "exact-10/optimiser",
+        what: "exact optimiser alone, 10 objects (sum), table given",
+        ms: vec![],
+    };
+    let mut opt10p = Samples {
+        name: "exact-10/optimiser-product",
+        what: "exact optimiser alone, 10 objects (product), table given",
+        ms: vec![],
+    };
+    let mut full10 = Samples {
+        name: "exact-10",
+        what: "full decision, 10 objects (20 crops FCN + 381 A* legs + optimiser)",
+        ms: vec![],
+    };
+    let mut lazy10 = Samples {
+        name: "exact-10-lazy",
+        what: "full decision, 10 objects, exact optimiser with lazy costs",
+        ms: vec![],
+    };
     let mut lazy10_calls = 0usize;
     let full10_iters = (args.iterations / 10).max(10);
     for k in 0..warmup + full10_iters {
         let s = k % scenes.len();
         let scene = &scenes[s];
         let first = (k * 10) % 20;
-        let targets: Vec<[f64; 3]> = scene.targets[first..first + 10].iter().map(|t| t.as_array()).collect();
+        let targets: Vec<[f64; 3]> = scene.targets[first..first + 10]
+            .iter()
+            .map(|t| t.as_array())
+            .collect();
         let t0 = Instant::now();
-        let problem = TaskProblem::from_world(scene, &robot, &targets, &mut fcn as &mut dyn FeasibilityEvaluator)?;
-        let mut travel = GridTravelTime { grid: &grids[s], speed_mps: robot.speed_mps };
-        let exact = PlannerConfig { search: SearchMode::Exact, ..cfg };
-        let planned = Planner::new(MethodKind::Grop, exact).plan(&problem, &mut travel, k as u64)?;
+        let problem = TaskProblem::from_world(
+            scene,
+            &robot,
+            &targets,
+            &mut fcn as &mut dyn FeasibilityEvaluator,
+        )?;
+        let mut travel = GridTravelTime {
+            grid: &grids[s],
+            speed_mps: robot.speed_mps,
+        };
+        let exact = PlannerConfig {
+            search: SearchMode::Exact,
+            ..cfg
+        };
+        let planned =
+            Planner::new(MethodKind::Grop, exact).plan(&problem, &mut travel, k as u64)?;
         let t1 = Instant::now();
         let t2 = Instant::now();
-        let problem_l = TaskProblem::from_world(scene, &robot, &targets, &mut fcn as &mut dyn FeasibilityEvaluator)?;
-        let mut grid_travel = GridTravelTime { grid: &grids[s], speed_mps: robot.speed_mps };
-        let lazy = Planner::new(MethodKind::Grop, PlannerConfig { lazy_costs: true, ..exact }).plan(&problem_l, &mut grid_travel, k as u64)?;
+        let problem_l = TaskProblem::from_world(
+            scene,
+            &robot,
+            &targets,
+            &mut fcn as &mut dyn FeasibilityEvaluator,
+        )?;
+        let mut grid_travel = GridTravelTime {
+            grid: &grids[s],
+            speed_mps: robot.speed_mps,
+        };
+        let lazy = Planner::new(
+            MethodKind::Grop,
+            PlannerConfig {
+                lazy_costs: true,
+                ..exact
+            },
+        )
+        .plan(&problem_l, &mut grid_travel, k as u64)?;
         let t3 = Instant::now();
-        anyhow::ensure!((lazy.utility - planned.utility).abs() < 1e-6, "lazy 10-object decision differs");
+        anyhow::ensure!(
+            (lazy.utility - planned.utility).abs() < 1e-6,
+            "lazy 10-object decision differs"
+        );
         if k >= warmup {
             full10.ms.push((t1 - t0).as_secs_f64() * 1e3);
             lazy10.ms.push((t3 - t2).as_secs_f64() * 1e3);
@@ -155,11 +262,22 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         if k >= warmup {
             for _ in 0..10 {
                 let t = Instant::now();
-                let best = optimise(&table, cfg.success_bonus_r, planner::methods::Aggregation::Sum)?;
+                let best = optimise(
+                    &table,
+                    cfg.success_bonus_r,
+                    planner::methods::Aggregation::Sum,
+                )?;
                 opt10.ms.push(t.elapsed().as_secs_f64() * 1e3);
-                anyhow::ensure!(best.plan == planned.plan, "optimiser disagrees with the planner");
+                anyhow::ensure!(
+                    best.plan == planned.plan,
+                    "optimiser disagrees with the planner"
+                );
                 let t = Instant::now();
-                optimise(&table, cfg.success_bonus_r, planner::methods::Aggregation::Product)?;
+                optimise(
+                    &table,
+                    cfg.success_bonus_r,
+                    planner::methods::Aggregation::Product,
+                )?;
                 opt10p.ms.push(t.elapsed().as_secs_f64() * 1e3);
             }
         }
@@ -167,22 +285,44 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 
     let lazy3_mean_calls = lazy3_calls as f64 / lazy3.ms.len().max(1) as f64;
     let lazy10_mean_calls = lazy10_calls as f64 / lazy10.ms.len().max(1) as f64;
-    let cases = [full3, psi3, nav3, sel3, lazy3, opt10, opt10p, full10, lazy10];
+    let cases = [
+        full3, psi3, nav3, sel3, lazy3, opt10, opt10p, full10, lazy10,
+    ];
     let mut md = String::from(
         "# GROP decision latency\n\n<!-- written by `grop bench` -->\n\nOne core, release build, evaluation scenes \
          (15/20/25 chairs), the committed FCN `models/psi-fcn.onnx`, the world's Theta* navigation planner on the 0.1 m grid. \
          Reproduce: `cargo run --release -p grop-cli -- bench`.\n\n| case | what | n | p50 (ms) | p99 (ms) |\n|---|---|---|---|---|\n",
     );
     for c in &cases {
-        md.push_str(&format!("| {} | {} | {} | {:.3} | {:.3} |\n", c.name, c.what, c.ms.len(), c.pct(0.5), c.pct(0.99)));
-        println!("{:<28} p50 {:8.3} ms  p99 {:8.3} ms  (n = {})", c.name, c.pct(0.5), c.pct(0.99), c.ms.len());
+        md.push_str(&format!(
+            "| {} | {} | {} | {:.3} | {:.3} |\n",
+            c.name,
+            c.what,
+            c.ms.len(),
+            c.pct(0.5),
+            c.pct(0.99)
+        ));
+        println!(
+            "{:<28} p50 {:8.3} ms  p99 {:8.3} ms  (n = {})",
+            c.name,
+            c.pct(0.5),
+            c.pct(0.99),
+            c.ms.len()
+        );
     }
     md.push_str(&format!(
         "\nLazy costing asked the navigation planner {lazy3_mean_calls:.1} times per 3-object decision (full: 19) and \
          {lazy10_mean_calls:.1} times per 10-object decision (full: 381).\n"
     ));
-    println!("lazy calls: 3 objects {lazy3_mean_calls:.1} (of 19), 10 objects {lazy10_mean_calls:.1} (of 381)");
-    md.push_str(&format!("\nMachine: {} logical CPUs available; the planner itself runs on one thread.\n", std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1)));
+    println!(
+        "lazy calls: 3 objects {lazy3_mean_calls:.1} (of 19), 10 objects {lazy10_mean_calls:.1} (of 381)"
+    );
+    md.push_str(&format!(
+        "\nMachine: {} logical CPUs available; the planner itself runs on one thread.\n",
+        std::thread::available_parallelism()
+            .map(|n| n.get())
+            .unwrap_or(1)
+    ));
     if let Some(dir) = args.out.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     }

@@ -76,7 +76,11 @@ pub struct Args {
     #[arg(long)]
     pub no_sweep: bool,
     /// Methods of the main comparison, comma-separated.
-    #[arg(long, value_delimiter = ',', default_value = "grop,satisficing,petlon,dvh,fcn-planning")]
+    #[arg(
+        long,
+        value_delimiter = ',',
+        default_value = "grop,satisficing,petlon,dvh,fcn-planning"
+    )]
     pub methods: Vec<String>,
     /// F(p) = sum (paper) or product of the pairs' feasibilities.
     #[arg(long, value_enum, default_value_t = Aggregation::Sum)]
@@ -95,7 +99,8 @@ pub struct Args {
 pub fn run(args: Args) -> anyhow::Result<()> {
     let started = Instant::now();
     let robot = match &args.robot {
-        Some(p) => world::RobotConfig::load(p).with_context(|| format!("loading robot file {}", p.display()))?,
+        Some(p) => world::RobotConfig::load(p)
+            .with_context(|| format!("loading robot file {}", p.display()))?,
         None => world::RobotConfig::default(),
     };
     let methods = args
@@ -109,7 +114,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         tasks_per_scene: args.tasks_per_scene,
         methods,
         main_speed_mps: args.speed,
-        sweep_speeds_mps: if args.no_sweep { Vec::new() } else { args.sweep_speeds.clone() },
+        sweep_speeds_mps: if args.no_sweep {
+            Vec::new()
+        } else {
+            args.sweep_speeds.clone()
+        },
         gt_trials_per_cell: args.trials_per_cell,
         robot: robot.clone(),
         ..EvalConfig::default()
@@ -130,9 +139,18 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     cfg.check()?;
 
     let workload = Workload::build(&cfg);
-    log::info!("{} scenes, {} tasks; {} (speed, method) runs", workload.scenes.len(), workload.tasks.len(), cfg.runs().len());
-    let truth = experiments::ground_truth(&cfg, &workload, Some(&args.cache)).context("ground truth")?;
-    log::info!("ground truth ready after {:.1} s", started.elapsed().as_secs_f64());
+    log::info!(
+        "{} scenes, {} tasks; {} (speed, method) runs",
+        workload.scenes.len(),
+        workload.tasks.len(),
+        cfg.runs().len()
+    );
+    let truth =
+        experiments::ground_truth(&cfg, &workload, Some(&args.cache)).context("ground truth")?;
+    log::info!(
+        "ground truth ready after {:.1} s",
+        started.elapsed().as_secs_f64()
+    );
     let psi: HeatmapSet = match args.evaluator {
         Evaluator::GroundTruth => truth.clone(),
         Evaluator::Oracle => {
@@ -145,7 +163,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             experiments::evaluate_heatmaps(&workload, &mut fcn)?
         }
     };
-    log::info!("Psi ({:?}) ready after {:.1} s", args.evaluator, started.elapsed().as_secs_f64());
+    log::info!(
+        "Psi ({:?}) ready after {:.1} s",
+        args.evaluator,
+        started.elapsed().as_secs_f64()
+    );
     let records = experiments::run(&cfg, &workload, &psi, &truth)?;
     let summary = Summary::from_records(&cfg, &records);
 
@@ -177,5 +199,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 }
 
 fn grop_select_aggregation(product: bool) -> planner::methods::Aggregation {
-    if product { planner::methods::Aggregation::Product } else { planner::methods::Aggregation::Sum }
+    if product {
+        planner::methods::Aggregation::Product
+    } else {
+        planner::methods::Aggregation::Sum
+    }
 }

@@ -13,7 +13,14 @@ use crate::problem::TaskProblem;
 
 /// The arm's carry pose while the base drives: upper arm and forearm straight up, wrist folded,
 /// inside the base's footprint and above everything on the floor.
-pub const CARRY_JOINTS: Joints = [0.0, -std::f64::consts::FRAC_PI_2, 0.0, -std::f64::consts::FRAC_PI_2, 0.0, 0.0];
+pub const CARRY_JOINTS: Joints = [
+    0.0,
+    -std::f64::consts::FRAC_PI_2,
+    0.0,
+    -std::f64::consts::FRAC_PI_2,
+    0.0,
+    0.0,
+];
 
 /// The arm motion of one unloading step.
 #[derive(Debug, Clone, PartialEq)]
@@ -62,10 +69,16 @@ pub fn plan_unload_motion(
 ) -> Result<UnloadMotion, ArmPlanError> {
     let obstacles = scene.obstacle_boxes(robot, base);
     let goal = Point3::new(target[0], target[1], target[2]);
-    let place = plan_place(&robot.place, base, goal, &obstacles).map_err(|failure| ArmPlanError::Place { object, failure })?;
+    let place = plan_place(&robot.place, base, goal, &obstacles)
+        .map_err(|failure| ArmPlanError::Place { object, failure })?;
     let path = plan_joint_path(&robot.place, base, start, &place.joints, &obstacles, seed)
         .map_err(|error| ArmPlanError::Path { object, error })?;
-    Ok(UnloadMotion { object, base, place_joints: place.joints, path })
+    Ok(UnloadMotion {
+        object,
+        base,
+        place_joints: place.joints,
+        path,
+    })
 }
 
 /// Arm motions for every unloading step of a planned task, with the base at each commanded goal
@@ -85,9 +98,21 @@ pub fn arm_trajectories(
         .enumerate()
         .map(|(k, step)| {
             let goal = planned.goal_of(step);
-            let base = BasePose { x_m: goal.xy.0, y_m: goal.xy.1, yaw_rad: goal.yaw_rad };
+            let base = BasePose {
+                x_m: goal.xy.0,
+                y_m: goal.xy.1,
+                yaw_rad: goal.yaw_rad,
+            };
             let target = problem.location(step.object, step.side).target;
-            plan_unload_motion(scene, robot, step.object, base, target, &CARRY_JOINTS, mix_seed(seed, 0x6172_6d, k as u64))
+            plan_unload_motion(
+                scene,
+                robot,
+                step.object,
+                base,
+                target,
+                &CARRY_JOINTS,
+                mix_seed(seed, 0x0061_726d, k as u64),
+            )
         })
         .collect()
 }

@@ -34,7 +34,9 @@ pub struct GridTravelTime<'g> {
 
 impl TravelTime for GridTravelTime<'_> {
     fn travel_time_s(&mut self, from: (f64, f64), to: (f64, f64)) -> Option<f64> {
-        self.grid.plan(from, to).map(|p| p.travel_time_s(self.speed_mps))
+        self.grid
+            .plan(from, to)
+            .map(|p| p.travel_time_s(self.speed_mps))
     }
 }
 
@@ -91,7 +93,13 @@ impl LegCache {
         positions.push(problem.station_xy);
         positions.extend_from_slice(goals_xy);
         let n = positions.len();
-        Self { positions, known: vec![None; n * n], no_path: vec![false; n * n], no_path_cost_s, calls: 0 }
+        Self {
+            positions,
+            known: vec![None; n * n],
+            no_path: vec![false; n * n],
+            no_path_cost_s,
+            calls: 0,
+        }
     }
 
     fn index(node: NavNode) -> usize {
@@ -136,7 +144,11 @@ impl LegCache {
         // Always ask in the canonical direction (lower node first): an any-angle grid planner's
         // path length can differ by a cell or so between directions, and the cost of a leg must
         // not depend on which plan asked for it first.
-        let (a, b) = if Self::index(a) <= Self::index(b) { (a, b) } else { (b, a) };
+        let (a, b) = if Self::index(a) <= Self::index(b) {
+            (a, b)
+        } else {
+            (b, a)
+        };
         let t = match travel.travel_time_s(self.position(a), self.position(b)) {
             Some(t) if t.is_finite() => t,
             _ => {
@@ -187,7 +199,11 @@ pub struct MemoTravel<T> {
 impl<T: TravelTime> MemoTravel<T> {
     /// A memo around `inner`.
     pub fn new(inner: T) -> Self {
-        Self { inner, memo: std::collections::HashMap::new(), misses: 0 }
+        Self {
+            inner,
+            memo: std::collections::HashMap::new(),
+            misses: 0,
+        }
     }
 
     /// Calls that reached the wrapped oracle.
@@ -200,7 +216,11 @@ impl<T: TravelTime> TravelTime for MemoTravel<T> {
     fn travel_time_s(&mut self, from: (f64, f64), to: (f64, f64)) -> Option<f64> {
         let a = [from.0.to_bits(), from.1.to_bits()];
         let b = [to.0.to_bits(), to.1.to_bits()];
-        let key = if a <= b { [a[0], a[1], b[0], b[1]] } else { [b[0], b[1], a[0], a[1]] };
+        let key = if a <= b {
+            [a[0], a[1], b[0], b[1]]
+        } else {
+            [b[0], b[1], a[0], a[1]]
+        };
         if let Some(&t) = self.memo.get(&key) {
             return t;
         }
@@ -221,7 +241,11 @@ mod tests {
     impl TravelTime for Counting {
         fn travel_time_s(&mut self, from: (f64, f64), to: (f64, f64)) -> Option<f64> {
             self.0 += 1;
-            if to.0 > 100.0 { None } else { Some((to.0 - from.0).abs() + (to.1 - from.1).abs()) }
+            if to.0 > 100.0 {
+                None
+            } else {
+                Some((to.0 - from.0).abs() + (to.1 - from.1).abs())
+            }
         }
     }
 
@@ -232,7 +256,12 @@ mod tests {
             locations: (0..2 * n)
                 .map(|i| {
                     let side = if i % 2 == 0 { Side::Near } else { Side::Far };
-                    UnloadLocation::from_heatmap(i / 2, side, [i as f64, 6.0, 1.3], &Heatmap::zeros())
+                    UnloadLocation::from_heatmap(
+                        i / 2,
+                        side,
+                        [i as f64, 6.0, 1.3],
+                        &Heatmap::zeros(),
+                    )
                 })
                 .collect(),
         }
@@ -255,7 +284,10 @@ mod tests {
         // Asking again is free.
         cache.fill_table(&mut table, &mut oracle);
         assert_eq!(oracle.0, 19);
-        assert_eq!(cache.leg_s(NavNode::Goal(1), NavNode::Goal(1), &mut oracle), 0.0);
+        assert_eq!(
+            cache.leg_s(NavNode::Goal(1), NavNode::Goal(1), &mut oracle),
+            0.0
+        );
     }
 
     /// An oracle whose answer depends on direction: the cache must give the same value whichever
@@ -284,7 +316,10 @@ mod tests {
         let goals = vec![(0.0, 5.0), (500.0, 5.0)];
         let mut cache = LegCache::new(&p, &goals, 60.0);
         let mut oracle = Counting(0);
-        assert_eq!(cache.leg_s(NavNode::Station, NavNode::Goal(1), &mut oracle), 60.0);
+        assert_eq!(
+            cache.leg_s(NavNode::Station, NavNode::Goal(1), &mut oracle),
+            60.0
+        );
         assert!(cache.has_no_path(NavNode::Goal(1), NavNode::Station));
         assert!(!cache.has_no_path(NavNode::Goal(0), NavNode::Station));
         assert_eq!(cache.known_s(NavNode::Goal(0), NavNode::Station), None);

@@ -137,7 +137,10 @@ pub fn check_output_count(
     out: &[Heatmap],
 ) -> Result<(), FeasibilityError> {
     if queries.len() != out.len() {
-        return Err(FeasibilityError::OutputCount { queries: queries.len(), outputs: out.len() });
+        return Err(FeasibilityError::OutputCount {
+            queries: queries.len(),
+            outputs: out.len(),
+        });
     }
     Ok(())
 }

@@ -15,7 +15,9 @@
 //! gave Satisficing a fixed, scene-independent region: [`BaselineGoals::AuthorsCode`].
 
 pub use grop_select::FeasibilityAggregation as Aggregation;
-use grop_select::{Argmax, Candidate, FeasibilityAggregation, Scored, smp_best_of, task_feasibility, utility};
+use grop_select::{
+    Argmax, Candidate, FeasibilityAggregation, Scored, smp_best_of, task_feasibility, utility,
+};
 use rand::seq::SliceRandom;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -25,8 +27,7 @@ use world::generate::mix_seed;
 use crate::costs::{LegCache, NavNode, StraightLine, TravelTime};
 use crate::problem::{CANDIDATE_CELLS, ProblemError, TaskProblem, UnloadLocation, candidate_index};
 use crate::task::{
-    PlanningTable, TaskPlan, TaskPlanError, UnloadStep, location_index, optimise,
-    satisficing_plans,
+    PlanningTable, TaskPlan, TaskPlanError, UnloadStep, location_index, optimise, satisficing_plans,
 };
 
 /// The planning methods compared in the paper.
@@ -46,8 +47,13 @@ pub enum MethodKind {
 
 impl MethodKind {
     /// All methods, GROP first.
-    pub const ALL: [MethodKind; 5] =
-        [MethodKind::Grop, MethodKind::Satisficing, MethodKind::Petlon, MethodKind::Dvh, MethodKind::FcnPlanning];
+    pub const ALL: [MethodKind; 5] = [
+        MethodKind::Grop,
+        MethodKind::Satisficing,
+        MethodKind::Petlon,
+        MethodKind::Dvh,
+        MethodKind::FcnPlanning,
+    ];
 
     /// Name used in tables and on the command line.
     pub fn name(self) -> &'static str {
@@ -63,7 +69,9 @@ impl MethodKind {
     /// Parses a name case-insensitively (`grop`, `satisficing`, `petlon`, `dvh`, `fcn-planning`).
     pub fn parse(name: &str) -> Option<MethodKind> {
         let n = name.trim().to_ascii_lowercase().replace('_', "-");
-        MethodKind::ALL.into_iter().find(|m| m.name().to_ascii_lowercase() == n)
+        MethodKind::ALL
+            .into_iter()
+            .find(|m| m.name().to_ascii_lowercase() == n)
     }
 
     /// Does the method choose goals from the heatmap with `Smp`?
@@ -141,7 +149,11 @@ impl Default for PlannerConfig {
 impl PlannerConfig {
     /// The defaults with the robot file's `R` and speed.
     pub fn for_robot(robot: &world::RobotConfig) -> Self {
-        Self { success_bonus_r: robot.success_bonus_r, speed_mps: robot.speed_mps, ..Self::default() }
+        Self {
+            success_bonus_r: robot.success_bonus_r,
+            speed_mps: robot.speed_mps,
+            ..Self::default()
+        }
     }
 }
 
@@ -242,9 +254,18 @@ impl PlannedTask {
             self.utility,
             self.motion_planner_calls
         );
-        let steps: Vec<String> =
-            self.plan.unloads.iter().map(|u| format!("obj{}@{}", u.object, u.side.name())).collect();
-        let _ = writeln!(s, "  plan: load {:?}, unload {}", self.plan.load_order, steps.join(" -> "));
+        let steps: Vec<String> = self
+            .plan
+            .unloads
+            .iter()
+            .map(|u| format!("obj{}@{}", u.object, u.side.name()))
+            .collect();
+        let _ = writeln!(
+            s,
+            "  plan: load {:?}, unload {}",
+            self.plan.load_order,
+            steps.join(" -> ")
+        );
         for r in &self.locations {
             let _ = writeln!(
                 s,
@@ -261,10 +282,23 @@ impl PlannedTask {
         if !self.candidates.is_empty() {
             let mut rows = self.candidates.clone();
             rows.sort_by(|a, b| b.utility.total_cmp(&a.utility).then(a.index.cmp(&b.index)));
-            let _ = writeln!(s, "  top {} of {} plans (F, C s, U):", top.min(rows.len()), rows.len());
+            let _ = writeln!(
+                s,
+                "  top {} of {} plans (F, C s, U):",
+                top.min(rows.len()),
+                rows.len()
+            );
             for r in rows.iter().take(top) {
-                let mark = if Some(r.index) == self.chosen_candidate { "*" } else { " " };
-                let _ = writeln!(s, "  {mark}#{:<4} {:.3} {:7.1} {:8.2}", r.index, r.feasibility, r.cost_s, r.utility);
+                let mark = if Some(r.index) == self.chosen_candidate {
+                    "*"
+                } else {
+                    " "
+                };
+                let _ = writeln!(
+                    s,
+                    "  {mark}#{:<4} {:.3} {:7.1} {:8.2}",
+                    r.index, r.feasibility, r.cost_s, r.utility
+                );
             }
         }
         s
@@ -357,14 +391,22 @@ impl Planner {
                     .flat_map(|r| (26..=37).map(move |c| (r, c)))
                     .filter_map(|(r, c)| candidate_index(r, c))
                     .collect();
-                (region[rng.random_range(0..region.len())], GoalSource::FixedRegion)
+                (
+                    region[rng.random_range(0..region.len())],
+                    GoalSource::FixedRegion,
+                )
             }
             (_, BaselineGoals::AuthorsCode) => {
-                let nonzero: Vec<usize> = (0..CANDIDATE_CELLS).filter(|&i| loc.heat[i] > 0.0).collect();
+                let nonzero: Vec<usize> = (0..CANDIDATE_CELLS)
+                    .filter(|&i| loc.heat[i] > 0.0)
+                    .collect();
                 if nonzero.is_empty() {
                     uniform_free(loc, &mut rng)
                 } else {
-                    (nonzero[rng.random_range(0..nonzero.len())], GoalSource::UniformNonzero)
+                    (
+                        nonzero[rng.random_range(0..nonzero.len())],
+                        GoalSource::UniformNonzero,
+                    )
                 }
             }
             (_, BaselineGoals::Paper) => uniform_free(loc, &mut rng),
@@ -391,11 +433,16 @@ impl Planner {
 }
 
 fn uniform_free(loc: &UnloadLocation, rng: &mut ChaCha8Rng) -> (usize, GoalSource) {
-    let free: Vec<usize> = (0..CANDIDATE_CELLS).filter(|&i| loc.cells[i].free).collect();
+    let free: Vec<usize> = (0..CANDIDATE_CELLS)
+        .filter(|&i| loc.cells[i].free)
+        .collect();
     if free.is_empty() {
         (rng.random_range(0..CANDIDATE_CELLS), GoalSource::UniformAny)
     } else {
-        (free[rng.random_range(0..free.len())], GoalSource::UniformFree)
+        (
+            free[rng.random_range(0..free.len())],
+            GoalSource::UniformFree,
+        )
     }
 }
 
@@ -429,9 +476,17 @@ impl TaskMotionPlanner for Planner {
         let m = 2 * n;
 
         // Per (target, side): Fea^t in closed form (eq. 4) and one goal, shared by all plans.
-        let goals: Vec<NavGoal> =
-            problem.locations.iter().enumerate().map(|(i, l)| self.choose_goal(i, l, seed)).collect();
-        let location_f: Vec<f64> = problem.locations.iter().map(|l| task_feasibility(&l.heat)).collect();
+        let goals: Vec<NavGoal> = problem
+            .locations
+            .iter()
+            .enumerate()
+            .map(|(i, l)| self.choose_goal(i, l, seed))
+            .collect();
+        let location_f: Vec<f64> = problem
+            .locations
+            .iter()
+            .map(|l| task_feasibility(&l.heat))
+            .collect();
         let goals_xy: Vec<(f64, f64)> = goals.iter().map(|g| g.xy).collect();
         let mut cache = LegCache::new(problem, &goals_xy, cfg.no_path_cost_s);
         let mut decision_rng = ChaCha8Rng::seed_from_u64(mix_seed(seed, DECISION_STREAM, 0));
@@ -442,7 +497,11 @@ impl TaskMotionPlanner for Planner {
         let plan = match self.kind {
             MethodKind::Grop | MethodKind::FcnPlanning => {
                 let enumerate = self.enumerate_or_exact(n);
-                let plans = if enumerate { satisficing_plans(n)? } else { Vec::new() };
+                let plans = if enumerate {
+                    satisficing_plans(n)?
+                } else {
+                    Vec::new()
+                };
                 let mut table = PlanningTable::zeros(n);
                 table.feasibility.copy_from_slice(&location_f);
                 let mut rounds = 0;
@@ -463,7 +522,9 @@ impl TaskMotionPlanner for Planner {
                                 cost_s: table.plan_cost_s(p),
                             };
                             // Table values are finite, so offers cannot fail.
-                            let row = argmax.offer(c).map_err(|_| TaskPlanError::NotFinite("plan utility"))?;
+                            let row = argmax
+                                .offer(c)
+                                .map_err(|_| TaskPlanError::NotFinite("plan utility"))?;
                             candidates.push(row);
                         }
                         let best = argmax.best().ok_or(TaskPlanError::NoObjects)?.index;
@@ -491,7 +552,11 @@ impl TaskMotionPlanner for Planner {
                     .map(|object| {
                         let (fn_, ff) = (location_f[2 * object], location_f[2 * object + 1]);
                         let side = if (fn_ - ff).abs() <= 1e-12 {
-                            if decision_rng.random::<bool>() { Side::Far } else { Side::Near }
+                            if decision_rng.random::<bool>() {
+                                Side::Far
+                            } else {
+                                Side::Near
+                            }
                         } else if ff > fn_ {
                             Side::Far
                         } else {
@@ -503,7 +568,10 @@ impl TaskMotionPlanner for Planner {
                 unloads.shuffle(&mut decision_rng);
                 let mut load_order: Vec<usize> = (0..n).collect();
                 load_order.shuffle(&mut decision_rng);
-                TaskPlan { load_order, unloads }
+                TaskPlan {
+                    load_order,
+                    unloads,
+                }
             }
             MethodKind::Satisficing => {
                 let mut order: Vec<usize> = (0..n).collect();
@@ -512,26 +580,45 @@ impl TaskMotionPlanner for Planner {
                     .iter()
                     .map(|&object| UnloadStep {
                         object,
-                        side: if decision_rng.random::<bool>() { Side::Far } else { Side::Near },
+                        side: if decision_rng.random::<bool>() {
+                            Side::Far
+                        } else {
+                            Side::Near
+                        },
                     })
                     .collect();
                 let mut load_order: Vec<usize> = (0..n).collect();
                 load_order.shuffle(&mut decision_rng);
-                TaskPlan { load_order, unloads }
+                TaskPlan {
+                    load_order,
+                    unloads,
+                }
             }
         };
         let motion_planner_calls = cache.calls();
 
         // Report every method's plan with the same F (closed form) and C (motion planner).
-        let cost_s: f64 = plan_legs(&plan).into_iter().map(|(a, b)| cache.leg_s(a, b, travel)).sum();
-        let pair_f: Vec<f64> = plan.unloads.iter().map(|u| location_f[location_index(u.object, u.side)]).collect();
+        let cost_s: f64 = plan_legs(&plan)
+            .into_iter()
+            .map(|(a, b)| cache.leg_s(a, b, travel))
+            .sum();
+        let pair_f: Vec<f64> = plan
+            .unloads
+            .iter()
+            .map(|u| location_f[location_index(u.object, u.side)])
+            .collect();
         let feasibility = grop_select::plan_feasibility(cfg.aggregation, &pair_f);
         debug_assert_eq!(goals.len(), m);
         let locations = problem
             .locations
             .iter()
             .enumerate()
-            .map(|(i, l)| LocationRow { object: l.object, side: l.side, feasibility: location_f[i], goal: goals[i] })
+            .map(|(i, l)| LocationRow {
+                object: l.object,
+                side: l.side,
+                feasibility: location_f[i],
+                goal: goals[i],
+            })
             .collect();
         Ok(PlannedTask {
             method: self.kind,
@@ -576,19 +663,26 @@ fn petlon(
 /// optimistic straight line at the cruise speed, capped at the no-path penalty (so a lower bound
 /// on the leg's true cost either way).
 fn fill_estimates(table: &mut PlanningTable, cache: &LegCache, cfg: PlannerConfig) {
-    let bound = StraightLine { speed_mps: cfg.speed_mps };
+    let bound = StraightLine {
+        speed_mps: cfg.speed_mps,
+    };
     let estimate = |a: NavNode, b: NavNode| -> f64 {
-        cache
-            .known_s(a, b)
-            .unwrap_or_else(|| bound.time_s(cache.position(a), cache.position(b)).min(cfg.no_path_cost_s))
+        cache.known_s(a, b).unwrap_or_else(|| {
+            bound
+                .time_s(cache.position(a), cache.position(b))
+                .min(cfg.no_path_cost_s)
+        })
     };
     let m = 2 * table.n_objects;
     table.start_to_station_s = estimate(NavNode::Start, NavNode::Station);
     for i in 0..m {
         table.station_to_location_s[i] = estimate(NavNode::Station, NavNode::Goal(i));
         for j in 0..m {
-            table.location_to_location_s[i * m + j] =
-                if i / 2 == j / 2 { 0.0 } else { estimate(NavNode::Goal(i), NavNode::Goal(j)) };
+            table.location_to_location_s[i * m + j] = if i / 2 == j / 2 {
+                0.0
+            } else {
+                estimate(NavNode::Goal(i), NavNode::Goal(j))
+            };
         }
     }
 }
@@ -624,15 +718,26 @@ mod tests {
                 locations.push(UnloadLocation::from_heatmap(o, side, [x, 6.0, 1.3], &h));
             }
         }
-        TaskProblem { start_xy: (0.0, 2.0), station_xy: (0.0, 1.05), locations }
+        TaskProblem {
+            start_xy: (0.0, 2.0),
+            station_xy: (0.0, 1.05),
+            locations,
+        }
     }
 
     #[test]
     fn grop_picks_the_feasible_sides() {
         let p = toy_problem();
         let mut grop = Planner::new(MethodKind::Grop, PlannerConfig::default());
-        let out = grop.plan(&p, &mut StraightLine { speed_mps: 0.4 }, 1).unwrap();
-        let sides: Vec<(usize, Side)> = out.plan.unloads.iter().map(|u| (u.object, u.side)).collect();
+        let out = grop
+            .plan(&p, &mut StraightLine { speed_mps: 0.4 }, 1)
+            .unwrap();
+        let sides: Vec<(usize, Side)> = out
+            .plan
+            .unloads
+            .iter()
+            .map(|u| (u.object, u.side))
+            .collect();
         assert!(sides.contains(&(0, Side::Near)));
         assert!(sides.contains(&(1, Side::Far)));
         assert!(sides.contains(&(2, Side::Near)));
@@ -646,22 +751,36 @@ mod tests {
         for m in MethodKind::ALL {
             assert_eq!(MethodKind::parse(m.name()), Some(m));
         }
-        assert_eq!(MethodKind::parse("fcn_planning"), Some(MethodKind::FcnPlanning));
+        assert_eq!(
+            MethodKind::parse("fcn_planning"),
+            Some(MethodKind::FcnPlanning)
+        );
         assert_eq!(MethodKind::parse("astar"), None);
     }
 
     #[test]
     fn bad_config_is_rejected() {
         let p = toy_problem();
-        let cfg = PlannerConfig { goal_draws: 0, ..PlannerConfig::default() };
-        let err = Planner::new(MethodKind::Grop, cfg).plan(&p, &mut StraightLine { speed_mps: 0.4 }, 1);
+        let cfg = PlannerConfig {
+            goal_draws: 0,
+            ..PlannerConfig::default()
+        };
+        let err =
+            Planner::new(MethodKind::Grop, cfg).plan(&p, &mut StraightLine { speed_mps: 0.4 }, 1);
         assert!(matches!(err, Err(PlanError::Config(_))));
-        let empty = TaskProblem { start_xy: (0.0, 0.0), station_xy: (0.0, 0.0), locations: vec![] };
+        let empty = TaskProblem {
+            start_xy: (0.0, 0.0),
+            station_xy: (0.0, 0.0),
+            locations: vec![],
+        };
         let err = Planner::new(MethodKind::Grop, PlannerConfig::default()).plan(
             &empty,
             &mut StraightLine { speed_mps: 0.4 },
             1,
         );
-        assert!(matches!(err, Err(PlanError::Problem(ProblemError::NoTargets))));
+        assert!(matches!(
+            err,
+            Err(PlanError::Problem(ProblemError::NoTargets))
+        ));
     }
 }

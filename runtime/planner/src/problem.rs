@@ -51,12 +51,28 @@ impl UnloadLocation {
     /// marked free, with heatmap values taken from `heatmap`.
     pub fn from_heatmap(object: ObjectId, side: Side, target: [f64; 3], heatmap: &Heatmap) -> Self {
         let mut heat = [0.0; CANDIDATE_CELLS];
-        let mut cells = [CandidateCell { row: 0, col: 0, xy: (0.0, 0.0), free: true }; CANDIDATE_CELLS];
+        let mut cells = [CandidateCell {
+            row: 0,
+            col: 0,
+            xy: (0.0, 0.0),
+            free: true,
+        }; CANDIDATE_CELLS];
         for (i, (row, col)) in candidate_cells().enumerate() {
             heat[i] = heatmap.get(row, col);
-            cells[i] = CandidateCell { row, col, xy: cell_center_world(target[0], side, row, col), free: true };
+            cells[i] = CandidateCell {
+                row,
+                col,
+                xy: cell_center_world(target[0], side, row, col),
+                free: true,
+            };
         }
-        Self { object, side, target, heat, cells }
+        Self {
+            object,
+            side,
+            target,
+            heat,
+            cells,
+        }
     }
 
     /// Marks each cell free or not by checking the base footprint, facing the table, against the
@@ -64,7 +80,15 @@ impl UnloadLocation {
     pub fn mark_free_cells(&mut self, scene: &Scene, robot: &RobotConfig) {
         let yaw_rad = self.side.facing_yaw_rad();
         for c in self.cells.iter_mut() {
-            c.free = !base_collides(scene, robot, BasePose { x_m: c.xy.0, y_m: c.xy.1, yaw_rad });
+            c.free = !base_collides(
+                scene,
+                robot,
+                BasePose {
+                    x_m: c.xy.0,
+                    y_m: c.xy.1,
+                    yaw_rad,
+                },
+            );
         }
     }
 }
@@ -174,7 +198,10 @@ impl TaskProblem {
     }
 
     /// The crops of every (target, side), in [`location_index`] order. Checks the targets.
-    pub fn render_crops(scene: &Scene, targets: &[[f64; 3]]) -> Result<Vec<[u8; 2048]>, ProblemError> {
+    pub fn render_crops(
+        scene: &Scene,
+        targets: &[[f64; 3]],
+    ) -> Result<Vec<[u8; 2048]>, ProblemError> {
         check_targets(targets)?;
         Ok((0..2 * targets.len())
             .map(|i| render_crop(scene, targets[i / 2][0], side_of_location(i)))
@@ -183,10 +210,20 @@ impl TaskProblem {
 
     /// Builds the problem from heatmaps already computed, one per (target, side) in
     /// [`location_index`] order (e.g. ground truth from the simulator).
-    pub fn from_heatmaps(scene: &Scene, robot: &RobotConfig, targets: &[[f64; 3]], heatmaps: &[Heatmap]) -> Self {
+    pub fn from_heatmaps(
+        scene: &Scene,
+        robot: &RobotConfig,
+        targets: &[[f64; 3]],
+        heatmaps: &[Heatmap],
+    ) -> Self {
         let locations = (0..2 * targets.len())
             .map(|i| {
-                let mut l = UnloadLocation::from_heatmap(i / 2, side_of_location(i), targets[i / 2], &heatmaps[i]);
+                let mut l = UnloadLocation::from_heatmap(
+                    i / 2,
+                    side_of_location(i),
+                    targets[i / 2],
+                    &heatmaps[i],
+                );
                 l.mark_free_cells(scene, robot);
                 l
             })
@@ -206,7 +243,10 @@ fn check_targets(targets: &[[f64; 3]]) -> Result<(), ProblemError> {
     if targets.len() > MAX_OBJECTS {
         return Err(ProblemError::TooManyTargets(targets.len()));
     }
-    if let Some(index) = targets.iter().position(|t| t.iter().any(|v| !v.is_finite())) {
+    if let Some(index) = targets
+        .iter()
+        .position(|t| t.iter().any(|v| !v.is_finite()))
+    {
         return Err(ProblemError::BadTarget { index });
     }
     Ok(())

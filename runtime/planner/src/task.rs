@@ -167,7 +167,12 @@ pub struct DomainState {
 impl DomainState {
     /// The initial state: robot at its start, every object at the loading station.
     pub fn initial(n_objects: usize) -> Self {
-        Self { n_objects, robot_at: Location::Start, in_hand: 0, placed: 0 }
+        Self {
+            n_objects,
+            robot_at: Location::Start,
+            in_hand: 0,
+            placed: 0,
+        }
     }
 
     /// Is every object placed?
@@ -182,7 +187,10 @@ impl DomainState {
 
     fn check_object(&self, object: ObjectId) -> Result<(), ActionError> {
         if object >= self.n_objects {
-            return Err(ActionError::UnknownObject { object, n_objects: self.n_objects });
+            return Err(ActionError::UnknownObject {
+                object,
+                n_objects: self.n_objects,
+            });
         }
         Ok(())
     }
@@ -203,7 +211,10 @@ impl DomainState {
             Action::Load { object } => {
                 self.check_object(object)?;
                 if self.robot_at != Location::LoadingStation {
-                    return Err(ActionError::LoadAwayFromStation { object, at: self.robot_at });
+                    return Err(ActionError::LoadAwayFromStation {
+                        object,
+                        at: self.robot_at,
+                    });
                 }
                 if !self.at_station(object) {
                     return Err(ActionError::NotAtStation(object));
@@ -257,13 +268,25 @@ impl TaskPlan {
     /// The plan as the action sequence `<a^n_0, a^m_0, a^n_1, ...>` of the paper.
     pub fn actions(&self) -> Vec<Action> {
         let mut actions = Vec::with_capacity(1 + self.load_order.len() + 2 * self.unloads.len());
-        actions.push(Action::Navigate { to: Location::LoadingStation });
-        actions.extend(self.load_order.iter().map(|&object| Action::Load { object }));
+        actions.push(Action::Navigate {
+            to: Location::LoadingStation,
+        });
+        actions.extend(
+            self.load_order
+                .iter()
+                .map(|&object| Action::Load { object }),
+        );
         for u in &self.unloads {
             actions.push(Action::Navigate {
-                to: Location::Unload { object: u.object, side: u.side },
+                to: Location::Unload {
+                    object: u.object,
+                    side: u.side,
+                },
             });
-            actions.push(Action::Unload { object: u.object, side: u.side });
+            actions.push(Action::Unload {
+                object: u.object,
+                side: u.side,
+            });
         }
         actions
     }
@@ -279,7 +302,9 @@ impl TaskPlan {
 pub fn validate_actions(actions: &[Action], n_objects: usize) -> Result<(), PlanValidationError> {
     let mut state = DomainState::initial(n_objects);
     for (step, &a) in actions.iter().enumerate() {
-        state = state.apply(a).map_err(|error| PlanValidationError::Action { step, error })?;
+        state = state
+            .apply(a)
+            .map_err(|error| PlanValidationError::Action { step, error })?;
     }
     if !state.goal_reached() {
         return Err(PlanValidationError::GoalNotReached {
@@ -328,7 +353,11 @@ pub fn permutations(n: usize) -> Vec<Vec<usize>> {
 
 /// Side of the k-th unloading step in side mask `mask`: bit k clear = near, set = far.
 fn side_of(mask: u32, k: usize) -> Side {
-    if mask & (1 << k) == 0 { Side::Near } else { Side::Far }
+    if mask & (1 << k) == 0 {
+        Side::Near
+    } else {
+        Side::Far
+    }
 }
 
 /// `Plnr^t(T)`: every load-everything-first plan for `n_objects`, in a fixed order: load orders
@@ -355,7 +384,10 @@ pub fn satisficing_plans(n_objects: usize) -> Result<Vec<TaskPlan>, TaskPlanErro
                     unloads: unload
                         .iter()
                         .enumerate()
-                        .map(|(k, &object)| UnloadStep { object, side: side_of(mask, k) })
+                        .map(|(k, &object)| UnloadStep {
+                            object,
+                            side: side_of(mask, k),
+                        })
                         .collect(),
                 };
                 debug_assert!(plan.validate(n_objects).is_ok());
@@ -409,10 +441,14 @@ impl PlanningTable {
             return Err(TaskPlanError::NoObjects);
         }
         if self.station_to_location_s.len() != m {
-            return Err(TaskPlanError::BadTable("station_to_location_s must have 2n entries"));
+            return Err(TaskPlanError::BadTable(
+                "station_to_location_s must have 2n entries",
+            ));
         }
         if self.location_to_location_s.len() != m * m {
-            return Err(TaskPlanError::BadTable("location_to_location_s must have 2n x 2n entries"));
+            return Err(TaskPlanError::BadTable(
+                "location_to_location_s must have 2n x 2n entries",
+            ));
         }
         if self.feasibility.len() != m {
             return Err(TaskPlanError::BadTable("feasibility must have 2n entries"));
@@ -454,7 +490,10 @@ impl PlanningTable {
 
     /// `F(p)`: the plan's feasibility from its pairs' `Fea^t` (Algorithm 1, line 9).
     pub fn plan_feasibility(&self, plan: &TaskPlan, aggregation: FeasibilityAggregation) -> f64 {
-        let pairs = plan.unloads.iter().map(|u| self.feasibility[location_index(u.object, u.side)]);
+        let pairs = plan
+            .unloads
+            .iter()
+            .map(|u| self.feasibility[location_index(u.object, u.side)]);
         match aggregation {
             FeasibilityAggregation::Sum => pairs.sum(),
             FeasibilityAggregation::Product => pairs.product(),
@@ -497,25 +536,44 @@ pub fn optimise(
     table.check()?;
     let n = table.n_objects;
     if n > MAX_OBJECTS {
-        return Err(TaskPlanError::TooManyObjects { n_objects: n, limit: MAX_OBJECTS });
+        return Err(TaskPlanError::TooManyObjects {
+            n_objects: n,
+            limit: MAX_OBJECTS,
+        });
     }
     let unloads = match aggregation {
         FeasibilityAggregation::Sum => {
-            let gain: Vec<f64> = table.feasibility.iter().map(|f| success_bonus_r * f).collect();
+            let gain: Vec<f64> = table
+                .feasibility
+                .iter()
+                .map(|f| success_bonus_r * f)
+                .collect();
             best_order(table, &gain, None).1
         }
         FeasibilityAggregation::Product => best_product_plan(table, success_bonus_r),
     };
-    let plan = TaskPlan { load_order: (0..n).collect(), unloads };
+    let plan = TaskPlan {
+        load_order: (0..n).collect(),
+        unloads,
+    };
     let feasibility = table.plan_feasibility(&plan, aggregation);
     let cost_s = table.plan_cost_s(&plan);
-    Ok(ScoredPlan { plan, feasibility, cost_s, utility: utility(success_bonus_r, feasibility, cost_s) })
+    Ok(ScoredPlan {
+        plan,
+        feasibility,
+        cost_s,
+        utility: utility(success_bonus_r, feasibility, cost_s),
+    })
 }
 
 /// DP over (placed set, last location): maximises `sum gain[loc] - travel` from the station.
 /// `fixed_sides`: bit o set = object o must be unloaded from the far side (None = free choice).
 /// Returns (best value, the steps).
-fn best_order(table: &PlanningTable, gain: &[f64], fixed_sides: Option<u32>) -> (f64, Vec<UnloadStep>) {
+fn best_order(
+    table: &PlanningTable,
+    gain: &[f64],
+    fixed_sides: Option<u32>,
+) -> (f64, Vec<UnloadStep>) {
     let n = table.n_objects;
     let m = 2 * n;
     let full = full_mask(n) as usize;
@@ -534,6 +592,7 @@ fn best_order(table: &PlanningTable, gain: &[f64], fixed_sides: Option<u32>) -> 
         }
     }
     // Masks only grow, so increasing numeric order visits every subset before its supersets.
+    #[allow(clippy::needless_range_loop)] // `next` indexes the gains, the legs and the states
     for mask in 1..=full {
         for last in 0..m {
             let v = value[mask * m + last];
@@ -591,7 +650,9 @@ fn best_product_plan(table: &PlanningTable, success_bonus_r: f64) -> Vec<UnloadS
     let min_cost_s = -neg_min_cost;
     let mut assignments: Vec<(f64, u32)> = (0..=full_mask(n))
         .map(|far| {
-            let f: f64 = (0..n).map(|o| table.feasibility[2 * o + ((far >> o) & 1) as usize]).product();
+            let f: f64 = (0..n)
+                .map(|o| table.feasibility[2 * o + ((far >> o) & 1) as usize])
+                .product();
             (success_bonus_r * f, far)
         })
         .collect();
@@ -622,46 +683,102 @@ mod tests {
         let s = DomainState::initial(2);
         assert_eq!(
             s.apply(Action::Load { object: 0 }),
-            Err(ActionError::LoadAwayFromStation { object: 0, at: Location::Start })
+            Err(ActionError::LoadAwayFromStation {
+                object: 0,
+                at: Location::Start
+            })
         );
-        let s = s.apply(Action::Navigate { to: Location::LoadingStation }).unwrap();
+        let s = s
+            .apply(Action::Navigate {
+                to: Location::LoadingStation,
+            })
+            .unwrap();
         assert_eq!(
-            s.apply(Action::Navigate { to: Location::LoadingStation }),
+            s.apply(Action::Navigate {
+                to: Location::LoadingStation
+            }),
             Err(ActionError::AlreadyThere(Location::LoadingStation))
         );
         let s = s.apply(Action::Load { object: 1 }).unwrap();
         assert_eq!(s.in_hand, 0b10);
-        assert_eq!(s.apply(Action::Load { object: 1 }), Err(ActionError::NotAtStation(1)));
+        assert_eq!(
+            s.apply(Action::Load { object: 1 }),
+            Err(ActionError::NotAtStation(1))
+        );
         assert_eq!(
             s.apply(Action::Load { object: 2 }),
-            Err(ActionError::UnknownObject { object: 2, n_objects: 2 })
+            Err(ActionError::UnknownObject {
+                object: 2,
+                n_objects: 2
+            })
         );
-        let far1 = Location::Unload { object: 1, side: Side::Far };
+        let far1 = Location::Unload {
+            object: 1,
+            side: Side::Far,
+        };
         let s = s.apply(Action::Navigate { to: far1 }).unwrap();
         assert_eq!(
-            s.apply(Action::Unload { object: 1, side: Side::Near }),
-            Err(ActionError::UnloadAwayFromTarget { object: 1, side: Side::Near, at: far1 })
+            s.apply(Action::Unload {
+                object: 1,
+                side: Side::Near
+            }),
+            Err(ActionError::UnloadAwayFromTarget {
+                object: 1,
+                side: Side::Near,
+                at: far1
+            })
         );
-        let s = s.apply(Action::Unload { object: 1, side: Side::Far }).unwrap();
+        let s = s
+            .apply(Action::Unload {
+                object: 1,
+                side: Side::Far,
+            })
+            .unwrap();
         assert_eq!((s.in_hand, s.placed), (0, 0b10));
         assert!(!s.goal_reached());
-        assert_eq!(s.apply(Action::Unload { object: 1, side: Side::Far }), Err(ActionError::NotInHand(1)));
+        assert_eq!(
+            s.apply(Action::Unload {
+                object: 1,
+                side: Side::Far
+            }),
+            Err(ActionError::NotInHand(1))
+        );
         // The robot holds several objects: load both, then unload both.
         let plan = TaskPlan {
             load_order: vec![1, 0],
             unloads: vec![
-                UnloadStep { object: 0, side: Side::Near },
-                UnloadStep { object: 1, side: Side::Far },
+                UnloadStep {
+                    object: 0,
+                    side: Side::Near,
+                },
+                UnloadStep {
+                    object: 1,
+                    side: Side::Far,
+                },
             ],
         };
         plan.validate(2).unwrap();
-        let bad = TaskPlan { load_order: vec![1], unloads: plan.unloads.clone() };
+        let bad = TaskPlan {
+            load_order: vec![1],
+            unloads: plan.unloads.clone(),
+        };
         assert!(matches!(
             bad.validate(2),
-            Err(PlanValidationError::Action { step: 3, error: ActionError::NotInHand(0) })
+            Err(PlanValidationError::Action {
+                step: 3,
+                error: ActionError::NotInHand(0)
+            })
         ));
-        let short = TaskPlan { load_order: vec![0, 1], unloads: plan.unloads[..1].to_vec() };
-        assert_eq!(short.validate(2), Err(PlanValidationError::GoalNotReached { unplaced_mask: 0b10 }));
+        let short = TaskPlan {
+            load_order: vec![0, 1],
+            unloads: plan.unloads[..1].to_vec(),
+        };
+        assert_eq!(
+            short.validate(2),
+            Err(PlanValidationError::GoalNotReached {
+                unplaced_mask: 0b10
+            })
+        );
     }
 
     #[test]
@@ -678,7 +795,10 @@ mod tests {
         assert_eq!(satisficing_plans(1).unwrap().len(), 2);
         assert_eq!(satisficing_plans(4).unwrap().len(), 9216);
         assert_eq!(satisficing_plans(0), Err(TaskPlanError::NoObjects));
-        assert!(matches!(satisficing_plans(6), Err(TaskPlanError::TooManyObjects { .. })));
+        assert!(matches!(
+            satisficing_plans(6),
+            Err(TaskPlanError::TooManyObjects { .. })
+        ));
         assert_eq!(permutations(3).len(), 6);
         assert_eq!(permutations(0), vec![Vec::<usize>::new()]);
     }
@@ -697,8 +817,14 @@ mod tests {
         let p = TaskPlan {
             load_order: vec![0, 1],
             unloads: vec![
-                UnloadStep { object: 1, side: Side::Far },
-                UnloadStep { object: 0, side: Side::Near },
+                UnloadStep {
+                    object: 1,
+                    side: Side::Far,
+                },
+                UnloadStep {
+                    object: 0,
+                    side: Side::Near,
+                },
             ],
         };
         // start->station 2 + station->(1,far)=loc 3: 40 + loc3->loc0: 12
@@ -711,14 +837,20 @@ mod tests {
     fn malformed_tables_are_rejected() {
         let mut t = PlanningTable::zeros(2);
         t.feasibility.pop();
-        assert!(matches!(optimise(&t, 40.0, FeasibilityAggregation::Sum), Err(TaskPlanError::BadTable(_))));
+        assert!(matches!(
+            optimise(&t, 40.0, FeasibilityAggregation::Sum),
+            Err(TaskPlanError::BadTable(_))
+        ));
         let mut t = PlanningTable::zeros(2);
         t.location_to_location_s[3] = f64::NAN;
         assert_eq!(
             optimise(&t, 40.0, FeasibilityAggregation::Sum),
             Err(TaskPlanError::NotFinite("location_to_location_s"))
         );
-        assert_eq!(optimise(&PlanningTable::zeros(0), 40.0, FeasibilityAggregation::Sum), Err(TaskPlanError::NoObjects));
+        assert_eq!(
+            optimise(&PlanningTable::zeros(0), 40.0, FeasibilityAggregation::Sum),
+            Err(TaskPlanError::NoObjects)
+        );
         assert!(matches!(
             optimise(&PlanningTable::zeros(13), 40.0, FeasibilityAggregation::Sum),
             Err(TaskPlanError::TooManyObjects { limit: 12, .. })

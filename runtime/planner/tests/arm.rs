@@ -10,12 +10,17 @@ use world::{BasePose, Heatmap, RobotConfig, Scene, Side};
 fn reachable_goal_gets_a_path_from_the_carry_pose() {
     let scene = Scene::empty_paper_room();
     let robot = RobotConfig::default();
-    let base = BasePose { x_m: 0.0, y_m: 6.0 - 0.7, yaw_rad: Side::Near.facing_yaw_rad() };
+    let base = BasePose {
+        x_m: 0.0,
+        y_m: 6.0 - 0.7,
+        yaw_rad: Side::Near.facing_yaw_rad(),
+    };
     let m = plan_unload_motion(&scene, &robot, 0, base, [0.0, 6.0, 1.3], &CARRY_JOINTS, 1).unwrap();
     assert_eq!(m.path.first(), Some(&CARRY_JOINTS));
     assert_eq!(m.path.last(), Some(&m.place_joints));
     // The placing configuration puts the flange above the goal (tool pointing down).
-    let again = plan_unload_motion(&scene, &robot, 0, base, [0.0, 6.0, 1.3], &CARRY_JOINTS, 1).unwrap();
+    let again =
+        plan_unload_motion(&scene, &robot, 0, base, [0.0, 6.0, 1.3], &CARRY_JOINTS, 1).unwrap();
     assert_eq!(again, m, "deterministic for the seed");
 }
 
@@ -23,8 +28,13 @@ fn reachable_goal_gets_a_path_from_the_carry_pose() {
 fn far_goal_is_reported_not_panicked() {
     let scene = Scene::empty_paper_room();
     let robot = RobotConfig::default();
-    let base = BasePose { x_m: 0.0, y_m: 3.0, yaw_rad: Side::Near.facing_yaw_rad() };
-    let err = plan_unload_motion(&scene, &robot, 2, base, [0.0, 6.0, 1.3], &CARRY_JOINTS, 1).unwrap_err();
+    let base = BasePose {
+        x_m: 0.0,
+        y_m: 3.0,
+        yaw_rad: Side::Near.facing_yaw_rad(),
+    };
+    let err =
+        plan_unload_motion(&scene, &robot, 2, base, [0.0, 6.0, 1.3], &CARRY_JOINTS, 1).unwrap_err();
     assert!(matches!(err, ArmPlanError::Place { object: 2, .. }));
 }
 
@@ -35,7 +45,15 @@ fn chosen_plan_gets_one_motion_per_step() {
     // Heatmaps that favour the rows closest to the table, where the arm reaches.
     let mut h = Heatmap::zeros();
     for (r, c) in candidate_cells() {
-        h.set(r, c, if r <= 11 && (28..=35).contains(&c) { 1.0 } else { 0.0 });
+        h.set(
+            r,
+            c,
+            if r <= 11 && (28..=35).contains(&c) {
+                1.0
+            } else {
+                0.0
+            },
+        );
     }
     let targets = [[-2.0, 6.0, 1.3], [1.0, 6.0, 1.3]];
     let heatmaps = vec![h.clone(), h.clone(), h.clone(), h];

@@ -6,17 +6,35 @@ mod common;
 
 use grop_select::{FeasibilityAggregation, UTILITY_TIE_EPS};
 use planner::costs::{LegCache, TravelTime};
-use planner::methods::{BaselineGoals, GoalSource, MethodKind, Planner, PlannerConfig, SearchMode, TaskMotionPlanner};
+use planner::methods::{
+    BaselineGoals, GoalSource, MethodKind, Planner, PlannerConfig, SearchMode, TaskMotionPlanner,
+};
 use planner::task::{PlanningTable, location_index, satisficing_plans};
 
 fn configs() -> Vec<PlannerConfig> {
     let d = PlannerConfig::default();
     vec![
         d,
-        PlannerConfig { aggregation: FeasibilityAggregation::Product, goal_draws: 4, ..d },
-        PlannerConfig { baseline_goals: BaselineGoals::AuthorsCode, search: SearchMode::Exact, ..d },
-        PlannerConfig { lazy_costs: true, ..d },
-        PlannerConfig { lazy_costs: true, search: SearchMode::Exact, aggregation: FeasibilityAggregation::Product, ..d },
+        PlannerConfig {
+            aggregation: FeasibilityAggregation::Product,
+            goal_draws: 4,
+            ..d
+        },
+        PlannerConfig {
+            baseline_goals: BaselineGoals::AuthorsCode,
+            search: SearchMode::Exact,
+            ..d
+        },
+        PlannerConfig {
+            lazy_costs: true,
+            ..d
+        },
+        PlannerConfig {
+            lazy_costs: true,
+            search: SearchMode::Exact,
+            aggregation: FeasibilityAggregation::Product,
+            ..d
+        },
     ]
 }
 
@@ -27,14 +45,21 @@ fn every_method_keeps_the_invariants() {
             for seed in 0..12u64 {
                 let n = 1 + (seed as usize % 3);
                 let problem = common::random_problem(n, 1000 + seed);
-                let mut oracle = common::DetourOracle { speed_mps: cfg.speed_mps, salt: seed, no_path: 0.05, calls: 0 };
+                let mut oracle = common::DetourOracle {
+                    speed_mps: cfg.speed_mps,
+                    salt: seed,
+                    no_path: 0.05,
+                    calls: 0,
+                };
                 let mut planner = Planner::new(method, cfg);
                 assert_eq!(planner.kind(), method);
                 let out = planner.plan(&problem, &mut oracle, seed).unwrap();
                 let ctx = format!("{} seed {seed} cfg {cfg:?}", method.name());
 
                 // 1. The task plan is a valid solution of the symbolic domain.
-                out.plan.validate(n).unwrap_or_else(|e| panic!("{ctx}: {e}"));
+                out.plan
+                    .validate(n)
+                    .unwrap_or_else(|e| panic!("{ctx}: {e}"));
                 assert_eq!(out.method, method);
 
                 // 2. One goal per (object, side), on a candidate cell of that location.
@@ -60,7 +85,10 @@ fn every_method_keeps_the_invariants() {
                         }
                         (_, BaselineGoals::Paper) => {
                             if any_free {
-                                assert!(loc.cells[g.cell].free, "{ctx}: baseline goal on an obstacle");
+                                assert!(
+                                    loc.cells[g.cell].free,
+                                    "{ctx}: baseline goal on an obstacle"
+                                );
                             }
                         }
                         (_, BaselineGoals::AuthorsCode) => {
@@ -79,34 +107,61 @@ fn every_method_keeps_the_invariants() {
                     table.feasibility[i] = grop_select::task_feasibility(&l.heat);
                 }
                 cache.fill_table(&mut table, &mut oracle as &mut dyn TravelTime);
-                assert!((table.plan_cost_s(&out.plan) - out.cost_s).abs() < 1e-9, "{ctx}");
-                assert!((table.plan_feasibility(&out.plan, cfg.aggregation) - out.feasibility).abs() < 1e-12, "{ctx}");
-                assert!((out.utility - (cfg.success_bonus_r * out.feasibility - out.cost_s)).abs() < 1e-9);
+                assert!(
+                    (table.plan_cost_s(&out.plan) - out.cost_s).abs() < 1e-9,
+                    "{ctx}"
+                );
+                assert!(
+                    (table.plan_feasibility(&out.plan, cfg.aggregation) - out.feasibility).abs()
+                        < 1e-12,
+                    "{ctx}"
+                );
+                assert!(
+                    (out.utility - (cfg.success_bonus_r * out.feasibility - out.cost_s)).abs()
+                        < 1e-9
+                );
                 assert_eq!(out.locations.len(), 2 * n);
 
                 // 4. Each method's optimality claim, checked against every plan.
                 let plans = satisficing_plans(n).unwrap();
-                let u = |p| cfg.success_bonus_r * table.plan_feasibility(p, cfg.aggregation) - table.plan_cost_s(p);
+                let u = |p| {
+                    cfg.success_bonus_r * table.plan_feasibility(p, cfg.aggregation)
+                        - table.plan_cost_s(p)
+                };
                 match method {
                     MethodKind::Grop | MethodKind::FcnPlanning => {
                         let best = plans.iter().map(u).fold(f64::NEG_INFINITY, f64::max);
-                        assert!(out.utility >= best - 1e-7, "{ctx}: U {} < best {best}", out.utility);
+                        assert!(
+                            out.utility >= best - 1e-7,
+                            "{ctx}: U {} < best {best}",
+                            out.utility
+                        );
                         if cfg.search == SearchMode::Exact {
                             assert!(out.candidates.is_empty());
                         } else {
                             assert_eq!(out.candidates.len(), plans.len());
                             let chosen = out.chosen_candidate.unwrap();
                             assert_eq!(plans[chosen], out.plan);
-                            assert!(out.candidates.iter().all(|c| c.utility <= out.utility + UTILITY_TIE_EPS));
+                            assert!(
+                                out.candidates
+                                    .iter()
+                                    .all(|c| c.utility <= out.utility + UTILITY_TIE_EPS)
+                            );
                         }
                         assert!(out.motion_planner_calls <= 1 + 2 * n + 2 * n * (n - 1));
                     }
                     MethodKind::Petlon => {
-                        let min_cost = plans.iter().map(|p| table.plan_cost_s(p)).fold(f64::INFINITY, f64::min);
+                        let min_cost = plans
+                            .iter()
+                            .map(|p| table.plan_cost_s(p))
+                            .fold(f64::INFINITY, f64::min);
                         assert!((out.cost_s - min_cost).abs() < 1e-9, "{ctx}");
                     }
                     MethodKind::Dvh => {
-                        let max_f = plans.iter().map(|p| table.plan_feasibility(p, cfg.aggregation)).fold(0.0, f64::max);
+                        let max_f = plans
+                            .iter()
+                            .map(|p| table.plan_feasibility(p, cfg.aggregation))
+                            .fold(0.0, f64::max);
                         assert!(out.feasibility >= max_f - 1e-12, "{ctx}");
                         assert_eq!(out.motion_planner_calls, 0, "DVH decides without costs");
                     }
@@ -114,8 +169,15 @@ fn every_method_keeps_the_invariants() {
                 }
 
                 // 5. Deterministic for the seed.
-                let mut oracle2 = common::DetourOracle { speed_mps: cfg.speed_mps, salt: seed, no_path: 0.05, calls: 0 };
-                let again = Planner::new(method, cfg).plan(&problem, &mut oracle2, seed).unwrap();
+                let mut oracle2 = common::DetourOracle {
+                    speed_mps: cfg.speed_mps,
+                    salt: seed,
+                    no_path: 0.05,
+                    calls: 0,
+                };
+                let again = Planner::new(method, cfg)
+                    .plan(&problem, &mut oracle2, seed)
+                    .unwrap();
                 assert_eq!(again, out, "{ctx}: not reproducible");
             }
         }
@@ -129,11 +191,23 @@ fn seeds_change_goal_draws() {
     for method in MethodKind::ALL {
         let mut distinct = std::collections::HashSet::new();
         for seed in 0..20 {
-            let mut oracle = common::DetourOracle { speed_mps: 0.4, salt: 1, no_path: 0.0, calls: 0 };
-            let out = Planner::new(method, PlannerConfig::default()).plan(&problem, &mut oracle, seed).unwrap();
+            let mut oracle = common::DetourOracle {
+                speed_mps: 0.4,
+                salt: 1,
+                no_path: 0.0,
+                calls: 0,
+            };
+            let out = Planner::new(method, PlannerConfig::default())
+                .plan(&problem, &mut oracle, seed)
+                .unwrap();
             distinct.insert(out.goals.iter().map(|g| g.cell).collect::<Vec<_>>());
         }
-        assert!(distinct.len() > 5, "{}: only {} distinct goal sets", method.name(), distinct.len());
+        assert!(
+            distinct.len() > 5,
+            "{}: only {} distinct goal sets",
+            method.name(),
+            distinct.len()
+        );
     }
 }
 
@@ -145,8 +219,15 @@ fn smp_goals_beat_uniform_goals_on_average() {
     let mean_heat = |method| {
         let mut acc = 0.0;
         for seed in 0..200 {
-            let mut oracle = common::DetourOracle { speed_mps: 0.4, salt: 1, no_path: 0.0, calls: 0 };
-            let out = Planner::new(method, PlannerConfig::default()).plan(&problem, &mut oracle, seed).unwrap();
+            let mut oracle = common::DetourOracle {
+                speed_mps: 0.4,
+                salt: 1,
+                no_path: 0.0,
+                calls: 0,
+            };
+            let out = Planner::new(method, PlannerConfig::default())
+                .plan(&problem, &mut oracle, seed)
+                .unwrap();
             acc += out.goals.iter().map(|g| g.heat_value as f64).sum::<f64>();
         }
         acc
@@ -162,13 +243,38 @@ fn lazy_costs_keep_the_argmax() {
         let n = 1 + (seed as usize % 4);
         let problem = common::random_problem(n, 5000 + seed);
         for search in [SearchMode::Enumerate, SearchMode::Exact] {
-            let full_cfg = PlannerConfig { search, ..PlannerConfig::default() };
-            let lazy_cfg = PlannerConfig { lazy_costs: true, ..full_cfg };
-            let mut o1 = common::DetourOracle { speed_mps: 0.4, salt: seed, no_path: 0.1, calls: 0 };
-            let mut o2 = common::DetourOracle { speed_mps: 0.4, salt: seed, no_path: 0.1, calls: 0 };
-            let full = Planner::new(MethodKind::Grop, full_cfg).plan(&problem, &mut o1, seed).unwrap();
-            let lazy = Planner::new(MethodKind::Grop, lazy_cfg).plan(&problem, &mut o2, seed).unwrap();
-            assert!((full.utility - lazy.utility).abs() < 1e-7, "seed {seed}: {} vs {}", full.utility, lazy.utility);
+            let full_cfg = PlannerConfig {
+                search,
+                ..PlannerConfig::default()
+            };
+            let lazy_cfg = PlannerConfig {
+                lazy_costs: true,
+                ..full_cfg
+            };
+            let mut o1 = common::DetourOracle {
+                speed_mps: 0.4,
+                salt: seed,
+                no_path: 0.1,
+                calls: 0,
+            };
+            let mut o2 = common::DetourOracle {
+                speed_mps: 0.4,
+                salt: seed,
+                no_path: 0.1,
+                calls: 0,
+            };
+            let full = Planner::new(MethodKind::Grop, full_cfg)
+                .plan(&problem, &mut o1, seed)
+                .unwrap();
+            let lazy = Planner::new(MethodKind::Grop, lazy_cfg)
+                .plan(&problem, &mut o2, seed)
+                .unwrap();
+            assert!(
+                (full.utility - lazy.utility).abs() < 1e-7,
+                "seed {seed}: {} vs {}",
+                full.utility,
+                lazy.utility
+            );
             assert!(lazy.motion_planner_calls <= full.motion_planner_calls);
         }
     }

@@ -31,7 +31,11 @@ fn enumerated_best(t: &PlanningTable, r: f64, agg: FeasibilityAggregation) -> (u
     let plans = satisficing_plans(t.n_objects).unwrap();
     let mut a = Argmax::new(r);
     for p in &plans {
-        a.offer(Candidate { feasibility: t.plan_feasibility(p, agg), cost_s: t.plan_cost_s(p) }).unwrap();
+        a.offer(Candidate {
+            feasibility: t.plan_feasibility(p, agg),
+            cost_s: t.plan_cost_s(p),
+        })
+        .unwrap();
     }
     let b = a.best().unwrap();
     (b.index, b.utility, b.cost_s)
@@ -83,14 +87,19 @@ fn exact_handles_ten_objects() {
         };
         let best = optimise(&table, 40.0, agg).unwrap();
         best.plan.validate(n).unwrap();
-        let u = |p: &planner::task::TaskPlan| 40.0 * table.plan_feasibility(p, agg) - table.plan_cost_s(p);
+        let u = |p: &planner::task::TaskPlan| {
+            40.0 * table.plan_feasibility(p, agg) - table.plan_cost_s(p)
+        };
         assert!((u(&best.plan) - best.utility).abs() < 1e-9);
         for _ in 0..2000 {
             let mut p = best.plan.clone();
             p.unloads.shuffle(&mut rng);
             for s in p.unloads.iter_mut() {
                 if rng.random::<bool>() {
-                    s.side = match s.side { world::Side::Near => world::Side::Far, world::Side::Far => world::Side::Near };
+                    s.side = match s.side {
+                        world::Side::Near => world::Side::Far,
+                        world::Side::Far => world::Side::Near,
+                    };
                 }
             }
             assert!(u(&p) <= best.utility + 1e-9);
@@ -102,7 +111,10 @@ fn exact_handles_ten_objects() {
                 assert!(u(&p) <= best.utility + 1e-9);
             }
             let mut p = best.plan.clone();
-            p.unloads[i].side = match p.unloads[i].side { world::Side::Near => world::Side::Far, world::Side::Far => world::Side::Near };
+            p.unloads[i].side = match p.unloads[i].side {
+                world::Side::Near => world::Side::Far,
+                world::Side::Far => world::Side::Near,
+            };
             assert!(u(&p) <= best.utility + 1e-9);
         }
     }
@@ -115,16 +127,31 @@ fn petlon_equals_exhaustive_cost_optimal() {
     for seed in 0..40u64 {
         let n = 1 + (seed as usize % 4);
         let problem = common::random_problem(n, seed);
-        let mut oracle = common::DetourOracle { speed_mps: 0.4, salt: seed, no_path: 0.1, calls: 0 };
+        let mut oracle = common::DetourOracle {
+            speed_mps: 0.4,
+            salt: seed,
+            no_path: 0.1,
+            calls: 0,
+        };
         let cfg = PlannerConfig::default();
-        let out = Planner::new(MethodKind::Petlon, cfg).plan(&problem, &mut oracle, seed).unwrap();
+        let out = Planner::new(MethodKind::Petlon, cfg)
+            .plan(&problem, &mut oracle, seed)
+            .unwrap();
         // Exhaustive: every leg costed with the same oracle and goals, then every plan.
         let goals_xy: Vec<(f64, f64)> = out.goals.iter().map(|g| g.xy).collect();
         let mut cache = planner::costs::LegCache::new(&problem, &goals_xy, cfg.no_path_cost_s);
         let mut table = PlanningTable::zeros(n);
         cache.fill_table(&mut table, &mut oracle as &mut dyn TravelTime);
-        let min_cost = satisficing_plans(n).unwrap().iter().map(|p| table.plan_cost_s(p)).fold(f64::INFINITY, f64::min);
-        assert!((out.cost_s - min_cost).abs() < 1e-9, "seed {seed}: PETLON {} vs exhaustive {min_cost}", out.cost_s);
+        let min_cost = satisficing_plans(n)
+            .unwrap()
+            .iter()
+            .map(|p| table.plan_cost_s(p))
+            .fold(f64::INFINITY, f64::min);
+        assert!(
+            (out.cost_s - min_cost).abs() < 1e-9,
+            "seed {seed}: PETLON {} vs exhaustive {min_cost}",
+            out.cost_s
+        );
         assert!((table.plan_cost_s(&out.plan) - out.cost_s).abs() < 1e-9);
         assert!(out.motion_planner_calls <= cache.calls(), "seed {seed}");
         assert!(out.refinement_rounds >= 1);

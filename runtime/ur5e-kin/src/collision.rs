@@ -268,7 +268,11 @@ pub fn segment_segment_sq(
         } else {
             let b = d1.dot(&d2);
             let denom = a * e - b * b;
-            let mut s = if denom > EPS { ((b * f - c * e) / denom).clamp(0.0, 1.0) } else { 0.0 };
+            let mut s = if denom > EPS {
+                ((b * f - c * e) / denom).clamp(0.0, 1.0)
+            } else {
+                0.0
+            };
             let mut t = (b * s + f) / e;
             if t < 0.0 {
                 t = 0.0;
@@ -298,7 +302,9 @@ impl ArmCollisionModel {
             let reach = (x.radius_m - m) + (y.radius_m - m);
             segment_segment_sq(&x.a, &x.b, &y.a, &y.b) < reach * reach
         };
-        PAIRS.iter().any(|&(i, j)| touch(&capsules[i], &capsules[j]))
+        PAIRS
+            .iter()
+            .any(|&(i, j)| touch(&capsules[i], &capsules[j]))
             || [1, 3, 4].iter().any(|&i| touch(&capsules[i], column))
     }
 
@@ -383,7 +389,9 @@ mod tests {
             segment_segment_sq(&a.into(), &b.into(), &c.into(), &e.into()).sqrt()
         };
         // Crossing at right angles 0.5 apart.
-        assert!((d([-1., 0., 0.], [1., 0., 0.], [0., -1., 0.5], [0., 1., 0.5]) - 0.5).abs() < 1e-12);
+        assert!(
+            (d([-1., 0., 0.], [1., 0., 0.], [0., -1., 0.5], [0., 1., 0.5]) - 0.5).abs() < 1e-12
+        );
         // Parallel, overlapping.
         assert!((d([0., 0., 0.], [1., 0., 0.], [0.5, 0.3, 0.], [2., 0.3, 0.]) - 0.3).abs() < 1e-12);
         // Collinear, apart end to end.
@@ -400,7 +408,10 @@ mod tests {
         let column = model.base_column(&arm, &id);
         let half_pi = core::f64::consts::FRAC_PI_2;
         // Upright (the planner's carry pose) and a placing pose: free.
-        for q in [[0.0, -half_pi, 0.0, -half_pi, 0.0, 0.0], [0.3, -1.8, -1.4, -1.5, 1.57, 0.0]] {
+        for q in [
+            [0.0, -half_pi, 0.0, -half_pi, 0.0, 0.0],
+            [0.3, -1.8, -1.4, -1.5, 1.57, 0.0],
+        ] {
             let caps = model.capsules(&arm, &id, &q, 0.2);
             assert!(!model.self_collides(&caps, &column), "{q:?}");
         }

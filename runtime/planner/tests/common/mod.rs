@@ -67,5 +67,9 @@ pub fn random_problem(n: usize, seed: u64) -> TaskProblem {
             locations.push(l);
         }
     }
-    TaskProblem { start_xy: (0.0, 2.0), station_xy: (0.0, 1.05), locations }
+    TaskProblem {
+        start_xy: (0.0, 2.0),
+        station_xy: (0.0, 1.05),
+        locations,
+    }
 }
