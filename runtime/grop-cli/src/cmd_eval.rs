@@ -49,7 +49,7 @@ pub struct Args {
     #[arg(long, default_value = "target/grop-eval/ground-truth.json")]
     pub cache: PathBuf,
     /// Feasibility evaluator for the planners.
-    #[arg(long, value_enum, default_value_t = Evaluator::Oracle)]
+    #[arg(long, value_enum, default_value_t = Evaluator::Fcn)]
     pub evaluator: Evaluator,
     /// FCN model file (with `--evaluator fcn`).
     #[arg(long, default_value = "models/psi-fcn.onnx")]

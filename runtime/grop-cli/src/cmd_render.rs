@@ -5,10 +5,11 @@
 
 use std::path::{Path, PathBuf};
 
+use crate::common::{self, KindArg};
 use anyhow::Context;
 use trial_sim::{HeatmapArea, ground_truth_heatmaps, task_feasibility};
-use world::view::{self, RgbImage, RoomView, Side};
-use world::{RobotConfig, Scene};
+use world::Scene;
+use world::view::{self, RgbImage, Side};
 
 /// Arguments of `grop render`.
 #[derive(clap::Args, Debug)]
@@ -51,15 +52,6 @@ pub struct Args {
     pub whole_room: bool,
 }
 
-/// `--kind` values.
-#[derive(clap::ValueEnum, Clone, Copy, Debug)]
-pub enum KindArg {
-    /// evaluation_scene(seed, chairs, targets).
-    Evaluation,
-    /// training_scenes(seed, 1, targets)[0].
-    Training,
-}
-
 /// `--sides` values.
 #[derive(clap::ValueEnum, Clone, Copy, Debug)]
 pub enum SidesArg {
@@ -81,24 +73,14 @@ pub enum AreaArg {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let scene = match &args.scene {
-        Some(path) => Scene::load(path)?,
-        None => match args.kind {
-            KindArg::Evaluation => {
-                world::generate::evaluation_scene(args.seed, args.chairs, args.targets)
-            }
-            KindArg::Training => world::generate::training_scenes(args.seed, 1, args.targets)
-                .pop()
-                .context("the generator returned no scene")?,
-        },
-    };
-    scene
-        .validate()
-        .map_err(|e| anyhow::anyhow!("scene: {e}"))?;
-    let robot = match &args.robot {
-        Some(path) => RobotConfig::load(path)?,
-        None => RobotConfig::default(),
-    };
+    let scene = common::scene_from(
+        args.scene.as_deref(),
+        args.kind,
+        args.seed,
+        args.chairs,
+        args.targets,
+    )?;
+    let robot = common::robot_from(args.robot.as_deref())?;
     if args.trials_per_cell == 0 {
         anyhow::bail!("--trials-per-cell must be at least 1");
     }
@@ -125,18 +107,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         args.seed,
     );
 
-    let room_view = if args.whole_room {
-        RoomView::whole_room(&scene, args.pixels_per_m)
-    } else {
-        let bt = &scene.banquet_table;
-        RoomView::window(
-            (bt.x_min_m() - 0.75).max(scene.room.x_min_m),
-            (bt.x_max_m() + 0.75).min(scene.room.x_max_m),
-            (bt.y_min_m() - 2.2).max(scene.room.y_min_m),
-            (bt.y_max_m() + 2.2).min(scene.room.y_max_m),
-            args.pixels_per_m,
-        )
-    };
+    let room_view = common::room_view(&scene, args.pixels_per_m, args.whole_room);
     let mut picture = view::render_room(&scene, &room_view);
     let only_candidates = matches!(area, HeatmapArea::Candidate);
     for ((target, side), heatmap) in pairs.iter().zip(&heatmaps) {

@@ -1,15 +1,17 @@
 //! `grop`: the command-line entry point of the GROP dinner-table controller.
 //!
 //! Every job is a subcommand in its own module (`cmd_*.rs`), each with `--help` and defaults:
-//! `grop datagen`, `grop render`, `grop model-eval`, `grop eval`, `grop bench`.
+//! `grop demo`, `grop datagen`, `grop render`, `grop model-eval`, `grop eval`, `grop bench`.
 
 use clap::{Parser, Subcommand};
 
 mod cmd_bench;
 mod cmd_datagen;
+mod cmd_demo;
 mod cmd_eval;
 mod cmd_model_eval;
 mod cmd_render;
+mod common;
 
 /// GROP: visually grounded task-and-motion planning for a mobile manipulator setting dinner tables.
 #[derive(Parser, Debug)]
@@ -24,6 +26,8 @@ struct Cli {
 
 #[derive(Subcommand, Debug)]
 enum Command {
+    /// The whole pipeline once on the simulated robot: perceive, plan with GROP, explain, execute.
+    Demo(cmd_demo::Args),
     /// Generate the feasibility dataset: trials at every candidate cell of every task.
     Datagen(cmd_datagen::Args),
     /// Render a scene (generated or from a file) with its heatmaps overlaid, as a PNG.
@@ -40,6 +44,7 @@ fn main() -> std::process::ExitCode {
     let cli = Cli::parse();
     env_logger::Builder::from_env(env_logger::Env::default().default_filter_or(&cli.log)).init();
     let result = match cli.command {
+        Command::Demo(a) => cmd_demo::run(a),
         Command::Datagen(a) => cmd_datagen::run(a),
         Command::Render(a) => cmd_render::run(a),
         Command::ModelEval(a) => cmd_model_eval::run(a),

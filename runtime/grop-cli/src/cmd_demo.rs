@@ -1,0 +1,221 @@
+//! `grop demo`: the whole GROP pipeline once, on the simulated robot, and why it chose what it
+//! chose. A scene (generated or from a file) is seen from above; the FCN (Psi) turns the crop of
+//! every (target, side) into a heatmap; GROP (or a baseline) weighs feasibility against A* travel
+//! time over all task plans (U = R F - C, eq. 1); the chosen plan gets its arm trajectories; then
+//! the plan is executed in the trial simulator with navigation noise. Prints the decision (F, C, U
+//! per location and the top plans) and writes a picture of heatmaps, paths, goals and outcomes.
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use anyhow::Context;
+use experiments::{EvalConfig, StepOutcome};
+use planner::costs::GridTravelTime;
+use planner::feasibility::FcnEvaluator;
+use planner::methods::{MethodKind, Planner, PlannerConfig, TaskMotionPlanner};
+use planner::problem::TaskProblem;
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use world::nav::OccupancyGrid;
+use world::view::{self, Heatmap, Rgb, RgbImage, RoomView};
+
+use crate::common::{self, KindArg};
+
+/// Arguments of `grop demo`.
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// Scene file (TOML/JSON); default: generate one (see --kind).
+    #[arg(long)]
+    pub scene: Option<PathBuf>,
+    /// Generated scene: evaluation (chairs on both sides) or training (near side only).
+    #[arg(long, value_enum, default_value_t = KindArg::Evaluation)]
+    pub kind: KindArg,
+    /// Seed of the generated scene, the goal draws and the navigation noise.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Chairs in a generated evaluation scene (15 / 20 / 25 in the paper).
+    #[arg(long, default_value_t = 20)]
+    pub chairs: usize,
+    /// Objects to place (targets in a generated scene).
+    #[arg(long, default_value_t = 3)]
+    pub targets: usize,
+    /// Robot file (TOML/JSON); default: the built-in paper robot.
+    #[arg(long)]
+    pub robot: Option<PathBuf>,
+    /// The feasibility network Psi (ONNX).
+    #[arg(long, default_value = "models/psi-fcn.onnx")]
+    pub model: PathBuf,
+    /// Planning method: grop, satisficing, petlon, dvh, fcn-planning.
+    #[arg(long, default_value = "grop")]
+    pub method: String,
+    /// Plans to list in the explanation (best utility first).
+    #[arg(long, default_value_t = 8)]
+    pub top: usize,
+    /// Output PNG.
+    #[arg(long, default_value = "out/demo.png")]
+    pub out: PathBuf,
+    /// Picture resolution (pixels per metre).
+    #[arg(long, default_value_t = 48.0)]
+    pub pixels_per_m: f64,
+}
+
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let method = MethodKind::parse(&args.method).with_context(|| {
+        format!(
+            "unknown --method {:?}: use grop, satisficing, petlon, dvh or fcn-planning",
+            args.method
+        )
+    })?;
+    let scene = common::scene_from(
+        args.scene.as_deref(),
+        args.kind,
+        args.seed,
+        args.chairs,
+        args.targets,
+    )?;
+    let robot = common::robot_from(args.robot.as_deref())?;
+    let targets: Vec<[f64; 3]> = scene.targets.iter().map(|t| t.as_array()).collect();
+    let mut psi = FcnEvaluator::load(&args.model)
+        .with_context(|| format!("loading the feasibility network {}", args.model.display()))?;
+
+    // Perception + planning: what the planner node does on the robot.
+    let started = Instant::now();
+    let problem = TaskProblem::from_world(&scene, &robot, &targets, &mut psi)?;
+    let perceived = started.elapsed();
+    let grid = OccupancyGrid::from_scene(&scene, &robot);
+    let mut travel = GridTravelTime {
+        grid: &grid,
+        speed_mps: robot.speed_mps,
+    };
+    let config = PlannerConfig::for_robot(&robot);
+    let planned = Planner::new(method, config).plan(&problem, &mut travel, args.seed)?;
+    let decided = started.elapsed();
+    println!(
+        "scene {:?}: {} chairs, {} objects; robot at {:.1} m/s, R = {}",
+        scene.name,
+        scene.chairs.len(),
+        targets.len(),
+        robot.speed_mps,
+        config.success_bonus_r
+    );
+    println!(
+        "decision in {:.1} ms ({:.1} ms of it rendering crops and running Psi on {} crops)",
+        decided.as_secs_f64() * 1e3,
+        perceived.as_secs_f64() * 1e3,
+        problem.locations.len()
+    );
+    print!("{}", planned.explain(args.top));
+
+    // Arm trajectories for the chosen plan (IK + RRT-Connect from the carry pose).
+    for (step, motion) in planned
+        .plan
+        .unloads
+        .iter()
+        .zip(planner::arm::arm_trajectories(
+            &scene, &robot, &problem, &planned, args.seed,
+        ))
+    {
+        match motion {
+            Ok(m) => println!(
+                "  arm for obj{} @ {}: {} joint waypoints to place",
+                step.object,
+                step.side.name(),
+                m.path.len()
+            ),
+            Err(e) => println!(
+                "  arm for obj{} @ {}: no motion from the commanded goal ({e})",
+                step.object,
+                step.side.name()
+            ),
+        }
+    }
+
+    // Execution in the simulator, with the paper's navigation noise.
+    let eval = EvalConfig {
+        robot: robot.clone(),
+        planner: config,
+        ..EvalConfig::default()
+    };
+    let mut rng = ChaCha8Rng::seed_from_u64(args.seed);
+    let execution =
+        experiments::execute(&eval, &scene, &robot, &grid, &problem, &planned, &mut rng);
+    for (object, outcome) in &execution.steps {
+        println!("  executed obj{object}: {outcome:?}");
+    }
+    println!(
+        "placed {} of {} objects in {:.1} s ({:.1} m driven)",
+        execution.placed,
+        targets.len(),
+        execution.time_s,
+        execution.distance_m
+    );
+
+    let picture = draw(&args, &scene, &grid, &problem, &planned, &execution.steps);
+    if let Some(dir) = args.out.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    }
+    picture
+        .save(&args.out)
+        .with_context(|| format!("writing {}", args.out.display()))?;
+    println!("wrote {}", args.out.display());
+    Ok(())
+}
+
+/// Room, every location's predicted heatmap, the driven route (start -> station -> goals in plan
+/// order) and each goal coloured by its outcome.
+fn draw(
+    args: &Args,
+    scene: &world::Scene,
+    grid: &OccupancyGrid,
+    problem: &TaskProblem,
+    planned: &planner::methods::PlannedTask,
+    steps: &[(usize, StepOutcome)],
+) -> RgbImage {
+    let room = common::room_view(scene, args.pixels_per_m, true);
+    let mut img = view::render_room(scene, &room);
+    for location in &problem.locations {
+        let mut heatmap = Heatmap::zeros();
+        for (cell, value) in location.cells.iter().zip(location.heat) {
+            heatmap.set(cell.row, cell.col, value);
+        }
+        view::overlay_heatmap(
+            &mut img,
+            &room,
+            location.target[0],
+            location.side,
+            &heatmap,
+            true,
+        );
+    }
+    let mut route = vec![problem.start_xy, problem.station_xy];
+    route.extend(planned.plan.unloads.iter().map(|u| planned.goal_of(u).xy));
+    for leg in route.windows(2) {
+        if let Some(path) = grid.plan(leg[0], leg[1]) {
+            for seg in path.points.windows(2) {
+                draw_segment(&mut img, &room, seg[0], seg[1], Rgb([40, 40, 200]));
+            }
+        }
+    }
+    for (step, (_, outcome)) in planned.plan.unloads.iter().zip(steps) {
+        let goal = planned.goal_of(step);
+        let colour = match outcome {
+            StepOutcome::Placed => Rgb([0, 160, 0]),
+            _ => Rgb([210, 0, 0]),
+        };
+        view::draw_marker(&mut img, &room, goal.xy.0, goal.xy.1, 0.12, colour);
+    }
+    for t in &scene.targets {
+        view::draw_marker(&mut img, &room, t.x_m, t.y_m, 0.06, Rgb([30, 60, 230]));
+    }
+    img
+}
+
+fn draw_segment(img: &mut RgbImage, room: &RoomView, a: (f64, f64), b: (f64, f64), c: Rgb<u8>) {
+    let length = (b.0 - a.0).hypot(b.1 - a.1);
+    let n = (length / 0.02).ceil().max(1.0) as usize;
+    for k in 0..=n {
+        let t = k as f64 / n as f64;
+        let (x, y) = (a.0 + t * (b.0 - a.0), a.1 + t * (b.1 - a.1));
+        view::draw_marker(img, room, x, y, 0.02, c);
+    }
+}

@@ -1,0 +1,62 @@
+//! Pieces shared by several subcommands: loading or generating the scene, the robot file, and the
+//! picture window around the banquet table.
+
+use std::path::Path;
+
+use world::view::RoomView;
+use world::{RobotConfig, Scene};
+
+/// Which generator makes the scene when no file is given.
+#[derive(clap::ValueEnum, Clone, Copy, Debug)]
+pub enum KindArg {
+    /// evaluation_scene(seed, chairs, targets): chairs on both sides.
+    Evaluation,
+    /// training_scenes(seed, 1, targets)[0]: chairs on the near side only.
+    Training,
+}
+
+/// Loads the scene file, or generates one; validated either way.
+pub fn scene_from(
+    file: Option<&Path>,
+    kind: KindArg,
+    seed: u64,
+    chairs: usize,
+    targets: usize,
+) -> anyhow::Result<Scene> {
+    let scene = match file {
+        Some(path) => Scene::load(path)?,
+        None => match kind {
+            KindArg::Evaluation => world::generate::evaluation_scene(seed, chairs, targets),
+            KindArg::Training => world::generate::training_scenes(seed, 1, targets)
+                .pop()
+                .ok_or_else(|| anyhow::anyhow!("the generator returned no scene"))?,
+        },
+    };
+    scene
+        .validate()
+        .map_err(|e| anyhow::anyhow!("scene: {e}"))?;
+    Ok(scene)
+}
+
+/// Loads the robot file, or the built-in paper robot.
+pub fn robot_from(file: Option<&Path>) -> anyhow::Result<RobotConfig> {
+    Ok(match file {
+        Some(path) => RobotConfig::load(path)?,
+        None => RobotConfig::default(),
+    })
+}
+
+/// The whole room, or the band around the banquet table (what pictures usually want).
+pub fn room_view(scene: &Scene, pixels_per_m: f64, whole_room: bool) -> RoomView {
+    if whole_room {
+        return RoomView::whole_room(scene, pixels_per_m);
+    }
+    let bt = &scene.banquet_table;
+    RoomView::window(
+        (bt.x_min_m() - 0.75).max(scene.room.x_min_m),
+        (bt.x_max_m() + 0.75).min(scene.room.x_max_m),
+        (bt.y_min_m() - 2.2).max(scene.room.y_min_m),
+        (bt.y_max_m() + 2.2).min(scene.room.y_max_m),
+        pixels_per_m,
+    )
+}

@@ -1,0 +1,156 @@
+//! End-to-end runs of the `grop` binary: every job on small settings, and clear errors on bad
+//! input (no panic, non-zero exit, the bad thing named).
+
+use std::path::PathBuf;
+use std::process::{Command, Output};
+
+fn grop(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_grop"))
+        .args(args)
+        .args(["--log", "warn"])
+        .output()
+        .expect("the grop binary runs")
+}
+
+fn model() -> String {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../../models/psi-fcn.onnx")
+        .display()
+        .to_string()
+}
+
+fn text(o: &Output) -> String {
+    format!(
+        "{}{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    )
+}
+
+#[test]
+fn demo_plans_explains_executes_and_draws() {
+    let dir = tempfile::tempdir().unwrap();
+    let png = dir.path().join("demo.png");
+    let o = grop(&["demo", "--model", &model(), "--out", png.to_str().unwrap()]);
+    let out = text(&o);
+    assert!(o.status.success(), "{out}");
+    assert!(out.contains("GROP: F(p) ="), "{out}");
+    assert!(out.contains("of 288 plans"), "{out}");
+    assert!(out.contains("placed "), "{out}");
+    let img = image_header(&png);
+    assert_eq!(&img[..8], b"\x89PNG\r\n\x1a\n");
+}
+
+#[test]
+fn demo_is_deterministic_for_a_seed() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = |name: &str| {
+        let png = dir.path().join(name);
+        let o = grop(&[
+            "demo",
+            "--model",
+            &model(),
+            "--seed",
+            "5",
+            "--method",
+            "petlon",
+            "--out",
+            png.to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "{}", text(&o));
+        // Everything but the measured decision time.
+        let stdout = String::from_utf8_lossy(&o.stdout).to_string();
+        let kept: Vec<&str> = stdout
+            .lines()
+            .filter(|l| !l.starts_with("decision in") && !l.starts_with("wrote"))
+            .collect();
+        (kept.join("\n"), std::fs::read(&png).unwrap())
+    };
+    assert_eq!(run("a.png"), run("b.png"));
+}
+
+#[test]
+fn demo_names_a_bad_method_and_a_missing_model() {
+    let o = grop(&["demo", "--method", "magic", "--model", &model()]);
+    assert!(!o.status.success());
+    assert!(
+        text(&o).contains("unknown --method \"magic\""),
+        "{}",
+        text(&o)
+    );
+
+    let o = grop(&["demo", "--model", "/nonexistent/psi.onnx"]);
+    assert!(!o.status.success());
+    let out = text(&o);
+    assert!(out.contains("/nonexistent/psi.onnx"), "{out}");
+    assert!(!out.contains("panicked"), "{out}");
+}
+
+#[test]
+fn render_writes_picture_crops_and_scene() {
+    let dir = tempfile::tempdir().unwrap();
+    let png = dir.path().join("r.png");
+    let o = grop(&[
+        "render",
+        "--trials-per-cell",
+        "2",
+        "--out",
+        png.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(png.exists());
+    assert!(dir.path().join("r.crops.png").exists());
+    // The scene written beside the picture renders again from the file.
+    let scene = dir.path().join("r.scene.toml");
+    let again = dir.path().join("again.png");
+    let o = grop(&[
+        "render",
+        "--scene",
+        scene.to_str().unwrap(),
+        "--trials-per-cell",
+        "2",
+        "--out",
+        again.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    assert_eq!(std::fs::read(&png).unwrap(), std::fs::read(&again).unwrap());
+}
+
+#[test]
+fn render_names_the_file_and_field_of_a_bad_scene() {
+    let dir = tempfile::tempdir().unwrap();
+    let bad = dir.path().join("bad.toml");
+    std::fs::write(&bad, "format_version = 1\nname = \"x\"\nbogus_field = 3\n").unwrap();
+    let o = grop(&["render", "--scene", bad.to_str().unwrap()]);
+    assert!(!o.status.success());
+    let out = text(&o);
+    assert!(out.contains("bad.toml"), "{out}");
+    assert!(!out.contains("panicked"), "{out}");
+}
+
+#[test]
+fn datagen_writes_the_documented_files() {
+    let dir = tempfile::tempdir().unwrap();
+    let out_dir = dir.path().join("ds");
+    let o = grop(&[
+        "datagen",
+        "--envs",
+        "1",
+        "--targets-per-env",
+        "2",
+        "--out",
+        out_dir.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    for f in ["dataset.npz", "dataset.json", "trials.csv"] {
+        assert!(out_dir.join(f).exists(), "{f} missing");
+    }
+    let json: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out_dir.join("dataset.json")).unwrap()).unwrap();
+    // 2 tasks x 5 trials x 24 x 8 cells.
+    assert_eq!(json["summary"]["trials"], 1920);
+}
+
+fn image_header(path: &std::path::Path) -> Vec<u8> {
+    std::fs::read(path).unwrap().into_iter().take(8).collect()
+}
