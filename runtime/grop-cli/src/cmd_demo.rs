@@ -19,29 +19,13 @@ use rand_chacha::ChaCha8Rng;
 use world::nav::OccupancyGrid;
 use world::view::{self, Heatmap, Rgb, RgbImage, RoomView};
 
-use crate::common::{self, KindArg};
+use crate::common;
 
 /// Arguments of `grop demo`.
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// Scene file (TOML/JSON); default: generate one (see --kind).
-    #[arg(long)]
-    pub scene: Option<PathBuf>,
-    /// Generated scene: evaluation (chairs on both sides) or training (near side only).
-    #[arg(long, value_enum, default_value_t = KindArg::Evaluation)]
-    pub kind: KindArg,
-    /// Seed of the generated scene, the goal draws and the navigation noise.
-    #[arg(long, default_value_t = 1)]
-    pub seed: u64,
-    /// Chairs in a generated evaluation scene (15 / 20 / 25 in the paper).
-    #[arg(long, default_value_t = 20)]
-    pub chairs: usize,
-    /// Objects to place (targets in a generated scene).
-    #[arg(long, default_value_t = 3)]
-    pub targets: usize,
-    /// Robot file (TOML/JSON); default: the built-in paper robot.
-    #[arg(long)]
-    pub robot: Option<PathBuf>,
+    #[command(flatten)]
+    pub world: common::SceneArgs,
     /// The feasibility network Psi (ONNX).
     #[arg(long, default_value = "models/psi-fcn.onnx")]
     pub model: PathBuf,
@@ -66,14 +50,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             args.method
         )
     })?;
-    let scene = common::scene_from(
-        args.scene.as_deref(),
-        args.kind,
-        args.seed,
-        args.chairs,
-        args.targets,
-    )?;
-    let robot = common::robot_from(args.robot.as_deref())?;
+    let (scene, robot) = args.world.load()?;
     let targets: Vec<[f64; 3]> = scene.targets.iter().map(|t| t.as_array()).collect();
     let mut psi = FcnEvaluator::load(&args.model)
         .with_context(|| format!("loading the feasibility network {}", args.model.display()))?;
@@ -88,7 +65,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         speed_mps: robot.speed_mps,
     };
     let config = PlannerConfig::for_robot(&robot);
-    let planned = Planner::new(method, config).plan(&problem, &mut travel, args.seed)?;
+    let planned = Planner::new(method, config).plan(&problem, &mut travel, args.world.seed)?;
     let decided = started.elapsed();
     println!(
         "scene {:?}: {} chairs, {} objects; robot at {:.1} m/s, R = {}",
@@ -112,7 +89,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .unloads
         .iter()
         .zip(planner::arm::arm_trajectories(
-            &scene, &robot, &problem, &planned, args.seed,
+            &scene,
+            &robot,
+            &problem,
+            &planned,
+            args.world.seed,
         ))
     {
         match motion {
@@ -136,7 +117,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         planner: config,
         ..EvalConfig::default()
     };
-    let mut rng = ChaCha8Rng::seed_from_u64(args.seed);
+    let mut rng = ChaCha8Rng::seed_from_u64(args.world.seed);
     let execution =
         experiments::execute(&eval, &scene, &robot, &grid, &problem, &planned, &mut rng);
     for (object, outcome) in &execution.steps {

@@ -5,7 +5,7 @@
 
 use std::path::{Path, PathBuf};
 
-use crate::common::{self, KindArg};
+use crate::common;
 use anyhow::Context;
 use trial_sim::{HeatmapArea, ground_truth_heatmaps, task_feasibility};
 use world::Scene;
@@ -14,24 +14,8 @@ use world::view::{self, RgbImage, Side};
 /// Arguments of `grop render`.
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// Scene file to render (TOML/JSON); default: generate one (see --kind).
-    #[arg(long)]
-    pub scene: Option<PathBuf>,
-    /// Generated scene: evaluation (chairs on both sides) or training (near side only).
-    #[arg(long, value_enum, default_value_t = KindArg::Evaluation)]
-    pub kind: KindArg,
-    /// Seed of the generated scene and of the trials.
-    #[arg(long, default_value_t = 0)]
-    pub seed: u64,
-    /// Chairs in a generated evaluation scene (15 / 20 / 25 in the paper).
-    #[arg(long, default_value_t = 20)]
-    pub chairs: usize,
-    /// Targets in a generated scene.
-    #[arg(long, default_value_t = 3)]
-    pub targets: usize,
-    /// Robot file (TOML/JSON); default: the built-in robot.
-    #[arg(long)]
-    pub robot: Option<PathBuf>,
+    #[command(flatten)]
+    pub world: common::SceneArgs,
     /// Sides to simulate.
     #[arg(long, value_enum, default_value_t = SidesArg::Both)]
     pub sides: SidesArg,
@@ -73,14 +57,7 @@ pub enum AreaArg {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let scene = common::scene_from(
-        args.scene.as_deref(),
-        args.kind,
-        args.seed,
-        args.chairs,
-        args.targets,
-    )?;
-    let robot = common::robot_from(args.robot.as_deref())?;
+    let (scene, robot) = args.world.load()?;
     if args.trials_per_cell == 0 {
         anyhow::bail!("--trials-per-cell must be at least 1");
     }
@@ -104,7 +81,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         &pairs,
         area,
         args.trials_per_cell,
-        args.seed,
+        args.world.seed,
     );
 
     let room_view = common::room_view(&scene, args.pixels_per_m, args.whole_room);

@@ -1,7 +1,7 @@
 //! Pieces shared by several subcommands: loading or generating the scene, the robot file, and the
 //! picture window around the banquet table.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use world::view::RoomView;
 use world::{RobotConfig, Scene};
@@ -15,8 +15,45 @@ pub enum KindArg {
     Training,
 }
 
+/// The scene and robot options shared by the jobs that work on one scene.
+#[derive(clap::Args, Debug)]
+pub struct SceneArgs {
+    /// Scene file (TOML/JSON); default: generate one (see --kind).
+    #[arg(long)]
+    pub scene: Option<PathBuf>,
+    /// Generated scene: evaluation (chairs on both sides) or training (near side only).
+    #[arg(long, value_enum, default_value_t = KindArg::Evaluation)]
+    pub kind: KindArg,
+    /// Seed of the generated scene and of every random draw of the job.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Chairs in a generated evaluation scene (15 / 20 / 25 in the paper).
+    #[arg(long, default_value_t = 20)]
+    pub chairs: usize,
+    /// Targets (objects to place) in a generated scene.
+    #[arg(long, default_value_t = 3)]
+    pub targets: usize,
+    /// Robot file (TOML/JSON); default: the built-in paper robot.
+    #[arg(long)]
+    pub robot: Option<PathBuf>,
+}
+
+impl SceneArgs {
+    /// The scene and the robot these options name.
+    pub fn load(&self) -> anyhow::Result<(Scene, RobotConfig)> {
+        let scene = scene_from(
+            self.scene.as_deref(),
+            self.kind,
+            self.seed,
+            self.chairs,
+            self.targets,
+        )?;
+        Ok((scene, robot_from(self.robot.as_deref())?))
+    }
+}
+
 /// Loads the scene file, or generates one; validated either way.
-pub fn scene_from(
+fn scene_from(
     file: Option<&Path>,
     kind: KindArg,
     seed: u64,
@@ -39,7 +76,7 @@ pub fn scene_from(
 }
 
 /// Loads the robot file, or the built-in paper robot.
-pub fn robot_from(file: Option<&Path>) -> anyhow::Result<RobotConfig> {
+fn robot_from(file: Option<&Path>) -> anyhow::Result<RobotConfig> {
     Ok(match file {
         Some(path) => RobotConfig::load(path)?,
         None => RobotConfig::default(),
