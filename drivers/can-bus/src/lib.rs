@@ -27,6 +27,7 @@ pub mod conformance;
 mod error;
 mod frame;
 mod memory;
+pub mod os;
 mod socketcan_bus;
 mod virtual_bus;
 

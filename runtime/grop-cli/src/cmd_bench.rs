@@ -13,7 +13,9 @@ use std::time::Instant;
 use anyhow::Context;
 use planner::costs::{GridTravelTime, LegCache, MemoTravel};
 use planner::feasibility::{FcnEvaluator, FeasibilityEvaluator};
-use planner::methods::{MethodKind, Planner, PlannerConfig, SearchMode, TaskMotionPlanner};
+use planner::methods::{
+    MethodKind, PlannedTask, Planner, PlannerConfig, SearchMode, TaskMotionPlanner,
+};
 use planner::problem::TaskProblem;
 use planner::task::{PlanningTable, optimise};
 use world::nav::OccupancyGrid;
@@ -43,6 +45,14 @@ struct Samples {
 }
 
 impl Samples {
+    fn new(name: &'static str, what: &'static str) -> Self {
+        Self {
+            name,
+            what,
+            ms: Vec::new(),
+        }
+    }
+
     fn pct(&self, p: f64) -> f64 {
         let mut v = self.ms.clone();
         v.sort_by(f64::total_cmp);
@@ -52,6 +62,42 @@ impl Samples {
         let i = ((v.len() as f64 - 1.0) * p).round() as usize;
         v[i.min(v.len() - 1)]
     }
+}
+
+/// Goals of the `count` scene targets starting at `first`: one task of the case.
+fn task_targets(scene: &world::Scene, first: usize, count: usize) -> Vec<[f64; 3]> {
+    scene.targets[first..first + count]
+        .iter()
+        .map(|t| t.as_array())
+        .collect()
+}
+
+/// One full GROP decision with lazy costs: a fresh problem (crops rendered, FCN run) and the
+/// planner asking the navigation grid only for the legs it needs. The timed body of the
+/// `*-lazy` cases.
+fn lazy_decision(
+    scene: &world::Scene,
+    robot: &world::RobotConfig,
+    targets: &[[f64; 3]],
+    fcn: &mut dyn FeasibilityEvaluator,
+    grid: &OccupancyGrid,
+    cfg: PlannerConfig,
+    seed: u64,
+) -> anyhow::Result<PlannedTask> {
+    let problem = TaskProblem::from_world(scene, robot, targets, fcn)?;
+    let mut grid_travel = GridTravelTime {
+        grid,
+        speed_mps: robot.speed_mps,
+    };
+    let lazy = Planner::new(
+        MethodKind::Grop,
+        PlannerConfig {
+            lazy_costs: true,
+            ..cfg
+        },
+    )
+    .plan(&problem, &mut grid_travel, seed)?;
+    Ok(lazy)
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
@@ -71,40 +117,28 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let warmup = 5;
     let total = warmup + args.iterations;
 
-    let mut full3 = Samples {
-        name: "grop-3",
-        what: "full GROP decision, 3 objects (6 crops FCN + 19 A* legs + 288 plans)",
-        ms: vec![],
-    };
-    let mut psi3 = Samples {
-        name: "grop-3/psi",
-        what: "  of which: render 6 crops + FCN + free cells",
-        ms: vec![],
-    };
-    let mut nav3 = Samples {
-        name: "grop-3/nav",
-        what: "  of which: 19 A* navigation costs",
-        ms: vec![],
-    };
-    let mut lazy3 = Samples {
-        name: "grop-3-lazy",
-        what: "full GROP decision, 3 objects, lazy costs (same argmax, fewer A* legs)",
-        ms: vec![],
-    };
+    let mut full3 = Samples::new(
+        "grop-3",
+        "full GROP decision, 3 objects (6 crops FCN + 19 A* legs + 288 plans)",
+    );
+    let mut psi3 = Samples::new(
+        "grop-3/psi",
+        "  of which: render 6 crops + FCN + free cells",
+    );
+    let mut nav3 = Samples::new("grop-3/nav", "  of which: 19 A* navigation costs");
+    let mut lazy3 = Samples::new(
+        "grop-3-lazy",
+        "full GROP decision, 3 objects, lazy costs (same argmax, fewer A* legs)",
+    );
     let mut lazy3_calls = 0usize;
-    let mut sel3 = Samples {
-        name: "grop-3/select",
-        what: "  of which: Smp goals + 288 plans scored + argmax (costs cached)",
-        ms: vec![],
-    };
+    let mut sel3 = Samples::new(
+        "grop-3/select",
+        "  of which: Smp goals + 288 plans scored + argmax (costs cached)",
+    );
     for k in 0..total {
         let s = k % scenes.len();
         let scene = &scenes[s];
-        let first = (k / scenes.len() * 3) % 27;
-        let targets: Vec<[f64; 3]> = scene.targets[first..first + 3]
-            .iter()
-            .map(|t| t.as_array())
-            .collect();
+        let targets = task_targets(scene, (k / scenes.len() * 3) % 27, 3);
         let t0 = Instant::now();
         let problem = TaskProblem::from_world(
             scene,
@@ -139,24 +173,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             "cached decision differs from the full one"
         );
         let t7 = Instant::now();
-        let problem_l = TaskProblem::from_world(
-            scene,
-            &robot,
-            &targets,
-            &mut fcn as &mut dyn FeasibilityEvaluator,
-        )?;
-        let mut grid_travel = GridTravelTime {
-            grid: &grids[s],
-            speed_mps: robot.speed_mps,
-        };
-        let lazy = Planner::new(
-            MethodKind::Grop,
-            PlannerConfig {
-                lazy_costs: true,
-                ..cfg
-            },
-        )
-        .plan(&problem_l, &mut grid_travel, k as u64)?;
+        let lazy = lazy_decision(scene, &robot, &targets, &mut fcn, &grids[s], cfg, k as u64)?;
         let t8 = Instant::now();
         anyhow::ensure!(
             (lazy.utility - planned.utility).abs() < 1e-6,
@@ -174,36 +191,28 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
     }
 
-    let mut opt10 = Samples {
-        name: "exact-10/optimiser",
-        what: "exact optimiser alone, 10 objects (sum), table given",
-        ms: vec![],
-    };
-    let mut opt10p = Samples {
-        name: "exact-10/optimiser-product",
-        what: "exact optimiser alone, 10 objects (product), table given",
-        ms: vec![],
-    };
-    let mut full10 = Samples {
-        name: "exact-10",
-        what: "full decision, 10 objects (20 crops FCN + 381 A* legs + optimiser)",
-        ms: vec![],
-    };
-    let mut lazy10 = Samples {
-        name: "exact-10-lazy",
-        what: "full decision, 10 objects, exact optimiser with lazy costs",
-        ms: vec![],
-    };
+    let mut opt10 = Samples::new(
+        "exact-10/optimiser",
+        "exact optimiser alone, 10 objects (sum), table given",
+    );
+    let mut opt10p = Samples::new(
+        "exact-10/optimiser-product",
+        "exact optimiser alone, 10 objects (product), table given",
+    );
+    let mut full10 = Samples::new(
+        "exact-10",
+        "full decision, 10 objects (20 crops FCN + 381 A* legs + optimiser)",
+    );
+    let mut lazy10 = Samples::new(
+        "exact-10-lazy",
+        "full decision, 10 objects, exact optimiser with lazy costs",
+    );
     let mut lazy10_calls = 0usize;
     let full10_iters = (args.iterations / 10).max(10);
     for k in 0..warmup + full10_iters {
         let s = k % scenes.len();
         let scene = &scenes[s];
-        let first = (k * 10) % 20;
-        let targets: Vec<[f64; 3]> = scene.targets[first..first + 10]
-            .iter()
-            .map(|t| t.as_array())
-            .collect();
+        let targets = task_targets(scene, (k * 10) % 20, 10);
         let t0 = Instant::now();
         let problem = TaskProblem::from_world(
             scene,
@@ -223,24 +232,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             Planner::new(MethodKind::Grop, exact).plan(&problem, &mut travel, k as u64)?;
         let t1 = Instant::now();
         let t2 = Instant::now();
-        let problem_l = TaskProblem::from_world(
-            scene,
-            &robot,
-            &targets,
-            &mut fcn as &mut dyn FeasibilityEvaluator,
+        let lazy = lazy_decision(
+            scene, &robot, &targets, &mut fcn, &grids[s], exact, k as u64,
         )?;
-        let mut grid_travel = GridTravelTime {
-            grid: &grids[s],
-            speed_mps: robot.speed_mps,
-        };
-        let lazy = Planner::new(
-            MethodKind::Grop,
-            PlannerConfig {
-                lazy_costs: true,
-                ..exact
-            },
-        )
-        .plan(&problem_l, &mut grid_travel, k as u64)?;
         let t3 = Instant::now();
         anyhow::ensure!(
             (lazy.utility - planned.utility).abs() < 1e-6,

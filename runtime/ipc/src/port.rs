@@ -4,6 +4,7 @@ use std::marker::PhantomData;
 use std::ops::Deref;
 use std::time::{Duration, Instant};
 
+use can_bus::os::wait_readable;
 use iceoryx2::port::listener::Listener;
 use iceoryx2::port::notifier::Notifier;
 use iceoryx2::port::publisher::Publisher;
@@ -494,28 +495,4 @@ impl<T: Topic> TopicSubscriber<T> {
     pub fn service(&self) -> &str {
         &self.service
     }
-}
-
-/// Sleeps until `fd` is readable or `timeout` passed (an interrupted sleep returns early; the
-/// caller loops on its own deadline).
-fn wait_readable(fd: i32, timeout: Duration) -> std::io::Result<()> {
-    let mut poll_fd = libc::pollfd {
-        fd,
-        events: libc::POLLIN,
-        revents: 0,
-    };
-    let timeout = libc::timespec {
-        tv_sec: libc::time_t::try_from(timeout.as_secs()).unwrap_or(libc::time_t::MAX),
-        // Below 1e9, so it fits a c_long on every target.
-        tv_nsec: timeout.subsec_nanos() as libc::c_long,
-    };
-    // SAFETY: one valid pollfd, a valid timespec, no signal mask change.
-    let status = unsafe { libc::ppoll(&mut poll_fd, 1, &timeout, std::ptr::null()) };
-    if status < 0 {
-        let error = std::io::Error::last_os_error();
-        if error.kind() != std::io::ErrorKind::Interrupted {
-            return Err(error);
-        }
-    }
-    Ok(())
 }

@@ -21,6 +21,7 @@
 //! File formats, conventions and the robot's dimensions: `docs/world.md`.
 
 pub mod collision;
+mod file;
 pub mod generate;
 pub mod geometry;
 pub mod nav;

@@ -9,8 +9,9 @@ use std::path::{Path, PathBuf};
 use serde::{Deserialize, Serialize};
 use ur5e_kin::PlaceConfig;
 
+use crate::file::{self, FileEncoding, FileFailure, encoding_of};
 use crate::geometry::OrientedRect;
-use crate::scene::{FileEncoding, InvalidField, encoding_of, first_non_finite};
+use crate::scene::{InvalidField, first_non_finite};
 
 /// The robot format version this crate reads and writes.
 pub const ROBOT_FORMAT_VERSION: u32 = 1;
@@ -167,63 +168,42 @@ pub enum RobotError {
     },
 }
 
-#[derive(Deserialize)]
-struct VersionProbe {
-    format_version: u32,
+impl RobotError {
+    fn from_failure(failure: FileFailure, path: &Path) -> Self {
+        let path = path.to_owned();
+        match failure {
+            FileFailure::UnknownExtension => RobotError::UnknownExtension { path },
+            FileFailure::Read(source) => RobotError::Read { path, source },
+            FileFailure::Parse(message) => RobotError::Parse { path, message },
+            FileFailure::UnsupportedVersion { found, supported } => {
+                RobotError::UnsupportedVersion {
+                    path,
+                    found,
+                    supported,
+                }
+            }
+            FileFailure::Invalid(invalid) => RobotError::Invalid { path, invalid },
+        }
+    }
 }
 
 impl RobotConfig {
     /// Reads and validates a robot file (`.toml` or `.json`).
     pub fn load(path: impl AsRef<Path>) -> Result<RobotConfig, RobotError> {
         let path = path.as_ref();
-        let encoding = encoding_of(path).ok_or_else(|| RobotError::UnknownExtension {
-            path: path.to_owned(),
-        })?;
-        let text = std::fs::read_to_string(path).map_err(|source| RobotError::Read {
-            path: path.to_owned(),
-            source,
-        })?;
-        Self::parse(&text, encoding, path)
+        file::load(path, ROBOT_FORMAT_VERSION, RobotConfig::validate)
+            .map_err(|failure| RobotError::from_failure(failure, path))
     }
 
     /// Parses and validates robot text in TOML; `origin` names the source in errors.
     pub fn from_toml_str(text: &str, origin: impl AsRef<Path>) -> Result<RobotConfig, RobotError> {
-        Self::parse(text, FileEncoding::Toml, origin.as_ref())
-    }
-
-    fn parse(text: &str, encoding: FileEncoding, path: &Path) -> Result<RobotConfig, RobotError> {
-        let version = match encoding {
-            FileEncoding::Toml => toml::from_str::<VersionProbe>(text)
-                .map(|p| p.format_version)
-                .ok(),
-            FileEncoding::Json => serde_json::from_str::<VersionProbe>(text)
-                .map(|p| p.format_version)
-                .ok(),
-        };
-        if let Some(found) = version
-            && found != ROBOT_FORMAT_VERSION
-        {
-            return Err(RobotError::UnsupportedVersion {
-                path: path.to_owned(),
-                found,
-                supported: ROBOT_FORMAT_VERSION,
-            });
-        }
-        let config: RobotConfig = match encoding {
-            FileEncoding::Toml => toml::from_str(text).map_err(|e| RobotError::Parse {
-                path: path.to_owned(),
-                message: e.to_string().trim_end().to_owned(),
-            })?,
-            FileEncoding::Json => serde_json::from_str(text).map_err(|e| RobotError::Parse {
-                path: path.to_owned(),
-                message: e.to_string(),
-            })?,
-        };
-        config.validate().map_err(|invalid| RobotError::Invalid {
-            path: path.to_owned(),
-            invalid,
-        })?;
-        Ok(config)
+        file::parse(
+            text,
+            FileEncoding::Toml,
+            ROBOT_FORMAT_VERSION,
+            RobotConfig::validate,
+        )
+        .map_err(|failure| RobotError::from_failure(failure, origin.as_ref()))
     }
 
     /// The configuration as TOML text.

@@ -9,6 +9,7 @@ use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
+use crate::file::{self, FileEncoding, FileFailure, encoding_of};
 use crate::geometry::OrientedRect;
 
 /// The scene format version this crate reads and writes.
@@ -367,6 +368,25 @@ pub enum SceneError {
     },
 }
 
+impl SceneError {
+    fn from_failure(failure: FileFailure, path: &Path) -> Self {
+        let path = path.to_owned();
+        match failure {
+            FileFailure::UnknownExtension => SceneError::UnknownExtension { path },
+            FileFailure::Read(source) => SceneError::Read { path, source },
+            FileFailure::Parse(message) => SceneError::Parse { path, message },
+            FileFailure::UnsupportedVersion { found, supported } => {
+                SceneError::UnsupportedVersion {
+                    path,
+                    found,
+                    supported,
+                }
+            }
+            FileFailure::Invalid(invalid) => SceneError::Invalid { path, invalid },
+        }
+    }
+}
+
 /// A field that failed validation: its path in the file (`chairs[3].x_m`) and the reason.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 #[error("field `{field}`: {reason}")]
@@ -383,21 +403,6 @@ impl InvalidField {
             field: field.into(),
             reason: reason.into(),
         }
-    }
-}
-
-/// File encodings of scene and robot files.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub(crate) enum FileEncoding {
-    Toml,
-    Json,
-}
-
-pub(crate) fn encoding_of(path: &Path) -> Option<FileEncoding> {
-    match path.extension().and_then(|e| e.to_str()) {
-        Some(e) if e.eq_ignore_ascii_case("toml") => Some(FileEncoding::Toml),
-        Some(e) if e.eq_ignore_ascii_case("json") => Some(FileEncoding::Json),
-        _ => None,
     }
 }
 
@@ -459,56 +464,19 @@ impl Scene {
     /// Reads and validates a scene file (`.toml` or `.json`).
     pub fn load(path: impl AsRef<Path>) -> Result<Scene, SceneError> {
         let path = path.as_ref();
-        let encoding = encoding_of(path).ok_or_else(|| SceneError::UnknownExtension {
-            path: path.to_owned(),
-        })?;
-        let text = std::fs::read_to_string(path).map_err(|source| SceneError::Read {
-            path: path.to_owned(),
-            source,
-        })?;
-        Self::parse(&text, encoding, path)
+        file::load(path, SCENE_FORMAT_VERSION, Scene::validate)
+            .map_err(|failure| SceneError::from_failure(failure, path))
     }
 
     /// Parses and validates scene text in TOML; `origin` names the source in errors.
     pub fn from_toml_str(text: &str, origin: impl AsRef<Path>) -> Result<Scene, SceneError> {
-        Self::parse(text, FileEncoding::Toml, origin.as_ref())
-    }
-
-    fn parse(text: &str, encoding: FileEncoding, path: &Path) -> Result<Scene, SceneError> {
-        // Look at the version first so that an old or future file says so instead of failing
-        // on the first field it does not know.
-        let version = match encoding {
-            FileEncoding::Toml => toml::from_str::<VersionProbe>(text)
-                .map(|p| p.format_version)
-                .ok(),
-            FileEncoding::Json => serde_json::from_str::<VersionProbe>(text)
-                .map(|p| p.format_version)
-                .ok(),
-        };
-        if let Some(found) = version
-            && found != SCENE_FORMAT_VERSION
-        {
-            return Err(SceneError::UnsupportedVersion {
-                path: path.to_owned(),
-                found,
-                supported: SCENE_FORMAT_VERSION,
-            });
-        }
-        let scene: Scene = match encoding {
-            FileEncoding::Toml => toml::from_str(text).map_err(|e| SceneError::Parse {
-                path: path.to_owned(),
-                message: e.to_string().trim_end().to_owned(),
-            })?,
-            FileEncoding::Json => serde_json::from_str(text).map_err(|e| SceneError::Parse {
-                path: path.to_owned(),
-                message: e.to_string(),
-            })?,
-        };
-        scene.validate().map_err(|invalid| SceneError::Invalid {
-            path: path.to_owned(),
-            invalid,
-        })?;
-        Ok(scene)
+        file::parse(
+            text,
+            FileEncoding::Toml,
+            SCENE_FORMAT_VERSION,
+            Scene::validate,
+        )
+        .map_err(|failure| SceneError::from_failure(failure, origin.as_ref()))
     }
 
     /// The scene as TOML text.
@@ -695,9 +663,4 @@ fn positive(field: &str, value: f64) -> Result<(), InvalidField> {
             format!("must be positive, found {value}"),
         ))
     }
-}
-
-#[derive(Deserialize)]
-struct VersionProbe {
-    format_version: u32,
 }
