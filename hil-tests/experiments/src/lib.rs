@@ -10,7 +10,7 @@
 //! // Ground truth (for difficulty), cached on disk because it is the slow part.
 //! let truth = ground_truth(&cfg, &workload, Some(std::path::Path::new("target/gt.json")))?;
 //! // Psi for the planners: here the simulator oracle (an independent estimate).
-//! let mut oracle = experiments::SimulatedOracle::new(5, 99);
+//! let mut oracle = psi_eval::heuristics::OracleEvaluator::new(5, 99);
 //! let psi = evaluate_heatmaps(&workload, &mut oracle)?;
 //! let records = run(&cfg, &workload, &psi, &truth)?;
 //! let summary = Summary::from_records(&cfg, &records);
@@ -29,9 +29,7 @@ pub mod plot;
 use std::path::{Path, PathBuf};
 
 use planner::costs::GridTravelTime;
-use planner::feasibility::{
-    FeasibilityError, FeasibilityEvaluator, FeasibilityQuery, check_output_count,
-};
+use planner::feasibility::{FeasibilityError, FeasibilityEvaluator, FeasibilityQuery};
 use planner::methods::{
     MethodKind, PlanError, PlannedTask, Planner, PlannerConfig, TaskMotionPlanner,
 };
@@ -472,57 +470,6 @@ pub fn evaluate_heatmaps(
         maps.push(per_scene);
     }
     Ok(HeatmapSet { maps })
-}
-
-/// The simulator as `Psi`: an independent Monte-Carlo estimate of the ground truth
-/// (`trials_per_cell` trials per candidate cell, its own seed). An upper bound on what a perfect
-/// FCN could give the planners.
-#[derive(Debug, Clone)]
-pub struct SimulatedOracle {
-    trials_per_cell: u16,
-    seed: u64,
-}
-
-impl SimulatedOracle {
-    /// An oracle with its own seed.
-    pub fn new(trials_per_cell: u16, seed: u64) -> Self {
-        Self {
-            trials_per_cell: trials_per_cell.max(1),
-            seed,
-        }
-    }
-}
-
-impl FeasibilityEvaluator for SimulatedOracle {
-    fn name(&self) -> &str {
-        "oracle"
-    }
-
-    fn evaluate(
-        &mut self,
-        queries: &[FeasibilityQuery<'_>],
-        out: &mut [Heatmap],
-    ) -> Result<(), FeasibilityError> {
-        check_output_count(queries, out)?;
-        let results: Vec<Heatmap> = queries
-            .par_iter()
-            .map(|q| {
-                let seed = mix_seed(self.seed, q.target[0].to_bits(), side_index(q.side) as u64);
-                ground_truth_heatmap(
-                    q.scene,
-                    q.robot,
-                    q.target,
-                    q.side,
-                    self.trials_per_cell,
-                    seed,
-                )
-            })
-            .collect();
-        for (o, h) in out.iter_mut().zip(results) {
-            *o = h;
-        }
-        Ok(())
-    }
 }
 
 /// Difficulty third of a task.

@@ -1,9 +1,8 @@
 //! A small evaluation end to end: 3 scenes (15/20/25 chairs), 1 task each, every method and the
 //! speed sweep; checks shapes, invariants and reproducibility.
 
-use experiments::{
-    EvalConfig, SimulatedOracle, Summary, Workload, evaluate_heatmaps, ground_truth, run,
-};
+use experiments::{EvalConfig, Summary, Workload, evaluate_heatmaps, ground_truth, run};
+use psi_eval::heuristics::OracleEvaluator;
 
 fn small() -> EvalConfig {
     EvalConfig {
@@ -27,7 +26,7 @@ fn small_evaluation_runs_and_is_reproducible() {
     // The cache gives back the same heatmaps.
     let again = ground_truth(&cfg, &workload, Some(&cache)).unwrap();
     assert_eq!(truth.maps, again.maps);
-    let mut oracle = SimulatedOracle::new(1, 7);
+    let mut oracle = OracleEvaluator::new(1, 7);
     let psi = evaluate_heatmaps(&workload, &mut oracle).unwrap();
     let records = run(&cfg, &workload, &psi, &truth).unwrap();
     assert_eq!(records.len(), 3 * cfg.runs().len());

@@ -15,6 +15,7 @@
 use planner::feasibility::{
     FeasibilityError, FeasibilityEvaluator, FeasibilityQuery, check_output_count,
 };
+use rayon::prelude::*;
 use trial_sim::ArmModel;
 use world::view::{CROP_COLS, candidate_cells, cell_center_world};
 use world::{BasePose, Heatmap, PlaceConfig, RobotConfig, Scene, Side, base_collides};
@@ -274,20 +275,27 @@ impl FeasibilityEvaluator for OracleEvaluator {
                 reason: "trials_per_cell must be at least 1".into(),
             });
         }
-        for (q, heat) in queries.iter().zip(out.iter_mut()) {
-            let seed = world::generate::mix_seed(
-                self.seed,
-                q.target[0].to_bits(),
-                u64::from(q.side.sign() as u8),
-            );
-            *heat = trial_sim::ground_truth_heatmap(
-                q.scene,
-                q.robot,
-                q.target,
-                q.side,
-                self.trials_per_cell,
-                seed,
-            );
+        // Each query has its own seed, so the parallel result does not depend on thread count.
+        let results: Vec<Heatmap> = queries
+            .par_iter()
+            .map(|q| {
+                let seed = world::generate::mix_seed(
+                    self.seed,
+                    q.target[0].to_bits(),
+                    u64::from(q.side.sign() as u8),
+                );
+                trial_sim::ground_truth_heatmap(
+                    q.scene,
+                    q.robot,
+                    q.target,
+                    q.side,
+                    self.trials_per_cell,
+                    seed,
+                )
+            })
+            .collect();
+        for (heat, result) in out.iter_mut().zip(results) {
+            *heat = result;
         }
         Ok(())
     }

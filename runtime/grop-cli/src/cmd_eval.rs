@@ -6,9 +6,10 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use anyhow::Context;
-use experiments::{EvalConfig, HeatmapSet, SimulatedOracle, Summary, Workload};
+use experiments::{EvalConfig, HeatmapSet, Summary, Workload};
 use planner::feasibility::FcnEvaluator;
 use planner::methods::{BaselineGoals, MethodKind};
+use psi_eval::heuristics::OracleEvaluator;
 
 /// Which feasibility evaluator `Psi` feeds the planners.
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
@@ -154,7 +155,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let psi: HeatmapSet = match args.evaluator {
         Evaluator::GroundTruth => truth.clone(),
         Evaluator::Oracle => {
-            let mut oracle = SimulatedOracle::new(args.trials_per_cell, args.seed ^ 0x6f72_6163);
+            let mut oracle = OracleEvaluator::new(args.trials_per_cell, args.seed ^ 0x6f72_6163);
             experiments::evaluate_heatmaps(&workload, &mut oracle)?
         }
         Evaluator::Fcn => {
