@@ -465,102 +465,56 @@ fn write_npz(dataset: &Dataset, path: &Path) -> Result<(), DatagenError> {
     let tasks = &dataset.tasks;
     let write = || -> std::io::Result<()> {
         let mut npz = npyz::npz::NpzWriter::create(path)?;
-        {
-            let mut w = npz
-                .array::<u8>("images", Default::default())?
-                .default_dtype()
-                .shape(&crop_shape)
-                .begin_nd()?;
-            w.extend(tasks.iter().flat_map(|t| t.crop.iter().copied()))?;
-            w.finish()?;
-        }
-        {
-            let mut w = npz
-                .array::<f32>("labels", Default::default())?
-                .default_dtype()
-                .shape(&crop_shape)
-                .begin_nd()?;
-            w.extend(
-                tasks
-                    .iter()
-                    .flat_map(|t| t.counts.heatmap().values().to_vec()),
-            )?;
-            w.finish()?;
-        }
-        {
-            let mut w = npz
-                .array::<u8>("mask", Default::default())?
-                .default_dtype()
-                .shape(&crop_shape)
-                .begin_nd()?;
-            w.extend(
-                tasks
-                    .iter()
-                    .flat_map(|t| t.counts.trials.iter().map(|&n| u8::from(n > 0))),
-            )?;
-            w.finish()?;
-        }
-        {
-            let mut w = npz
-                .array::<u16>("successes", Default::default())?
-                .default_dtype()
-                .shape(&crop_shape)
-                .begin_nd()?;
-            w.extend(
-                tasks
-                    .iter()
-                    .flat_map(|t| t.counts.successes.iter().copied()),
-            )?;
-            w.finish()?;
-        }
-        {
-            let mut w = npz
-                .array::<u16>("trials_per_cell", Default::default())?
-                .default_dtype()
-                .shape(&[n])
-                .begin_nd()?;
-            w.extend(
-                tasks
-                    .iter()
-                    .map(|t| t.counts.trials.iter().copied().max().unwrap_or(0)),
-            )?;
-            w.finish()?;
-        }
-        {
-            let mut w = npz
-                .array::<f64>("targets", Default::default())?
-                .default_dtype()
-                .shape(&[n, 3])
-                .begin_nd()?;
-            w.extend(tasks.iter().flat_map(|t| t.task.target))?;
-            w.finish()?;
-        }
-        {
-            let mut w = npz
-                .array::<i32>("scene", Default::default())?
-                .default_dtype()
-                .shape(&[n])
-                .begin_nd()?;
-            // validate() bounds the task count by i32::MAX, and scenes <= tasks.
-            w.extend(
-                tasks
-                    .iter()
-                    .map(|t| i32::try_from(t.task.scene).unwrap_or(i32::MAX)),
-            )?;
-            w.finish()?;
-        }
-        {
-            let mut w = npz
-                .array::<i8>("side", Default::default())?
-                .default_dtype()
-                .shape(&[n])
-                .begin_nd()?;
-            w.extend(tasks.iter().map(|t| t.task.side.sign()))?;
-            w.finish()?;
-        }
+        let crops = tasks.iter().flat_map(|t| t.crop.iter().copied());
+        put_array(&mut npz, "images", &crop_shape, crops)?;
+        let labels = tasks
+            .iter()
+            .flat_map(|t| t.counts.heatmap().values().to_vec());
+        put_array(&mut npz, "labels", &crop_shape, labels)?;
+        let mask = tasks
+            .iter()
+            .flat_map(|t| t.counts.trials.iter().map(|&n| u8::from(n > 0)));
+        put_array(&mut npz, "mask", &crop_shape, mask)?;
+        let successes = tasks
+            .iter()
+            .flat_map(|t| t.counts.successes.iter().copied());
+        put_array(&mut npz, "successes", &crop_shape, successes)?;
+        let trials = tasks
+            .iter()
+            .map(|t| t.counts.trials.iter().copied().max().unwrap_or(0u16));
+        put_array(&mut npz, "trials_per_cell", &[n], trials)?;
+        let targets = tasks.iter().flat_map(|t| t.task.target);
+        put_array(&mut npz, "targets", &[n, 3], targets)?;
+        // validate() bounds the task count by i32::MAX, and scenes <= tasks.
+        let scenes = tasks
+            .iter()
+            .map(|t| i32::try_from(t.task.scene).unwrap_or(i32::MAX));
+        put_array(&mut npz, "scene", &[n], scenes)?;
+        let sides = tasks.iter().map(|t| t.task.side.sign());
+        put_array(&mut npz, "side", &[n], sides)?;
         Ok(())
     };
     write().map_err(io_err(path))
+}
+
+/// Writes one named array of `shape` (row-major values) into the npz.
+fn put_array<T, W>(
+    npz: &mut npyz::npz::NpzWriter<W>,
+    name: &str,
+    shape: &[u64],
+    values: impl IntoIterator<Item = T>,
+) -> std::io::Result<()>
+where
+    T: npyz::AutoSerialize,
+    W: std::io::Write + std::io::Seek,
+{
+    let mut w = npz
+        .array::<T>(name, Default::default())?
+        .default_dtype()
+        .shape(shape)
+        .begin_nd()?;
+    w.extend(values)?;
+    w.finish()
 }
 
 fn write_trials_csv(dataset: &Dataset, path: &Path) -> Result<(), DatagenError> {
