@@ -708,10 +708,7 @@ pub fn run(
                     speed_mps: speed,
                     ..cfg.planner
                 };
-                let mut travel = GridTravelTime {
-                    grid,
-                    speed_mps: speed,
-                };
+                let mut travel = GridTravelTime::new(grid, speed);
                 // Same seeds for every method: baselines draw the same uniform goals and every
                 // method meets the same noise stream (paired comparison).
                 let plan_seed = mix_seed(cfg.seed, task.id as u64, 0x706c);
@@ -861,6 +858,49 @@ pub struct Summary {
     pub sweep: Vec<(f64, MethodKind, Stats)>,
     /// Fig. 5 points: (method, difficulty, mean time of 10 tasks, completion of those 10).
     pub points: Vec<(MethodKind, Difficulty, f64, f64)>,
+    /// GROP minus each other method at the main speed, paired over the same tasks:
+    /// (method, difficulty or None for all, difference).
+    pub paired: Vec<(MethodKind, Option<Difficulty>, PairedDiff)>,
+}
+
+/// Mean difference of per-task completion between two methods on the same tasks, with its
+/// standard error (the spread of the per-task differences over the square root of their count).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct PairedDiff {
+    /// Tasks paired.
+    pub tasks: usize,
+    /// Mean of (placed / objects) of the first method minus the second's.
+    pub mean: f64,
+    /// Standard error of that mean.
+    pub std_error: f64,
+}
+
+impl PairedDiff {
+    /// The paired difference `a - b` over the tasks both ran.
+    pub fn of(a: &[&TaskRecord], b: &[&TaskRecord]) -> PairedDiff {
+        let rate = |r: &TaskRecord| r.placed as f64 / r.objects.max(1) as f64;
+        let by_task: std::collections::HashMap<usize, f64> =
+            b.iter().map(|r| (r.task, rate(r))).collect();
+        let d: Vec<f64> = a
+            .iter()
+            .filter_map(|r| by_task.get(&r.task).map(|rb| rate(r) - rb))
+            .collect();
+        if d.len() < 2 {
+            return PairedDiff {
+                tasks: d.len(),
+                mean: d.first().copied().unwrap_or(0.0),
+                std_error: f64::NAN,
+            };
+        }
+        let n = d.len() as f64;
+        let mean = d.iter().sum::<f64>() / n;
+        let var = d.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (n - 1.0);
+        PairedDiff {
+            tasks: d.len(),
+            mean,
+            std_error: (var / n).sqrt(),
+        }
+    }
 }
 
 impl Summary {
@@ -887,6 +927,24 @@ impl Summary {
                 }
             }
         }
+        let mut paired = Vec::new();
+        let grop: Vec<&TaskRecord> = at(cfg.main_speed_mps, MethodKind::Grop).collect();
+        if !grop.is_empty() {
+            for &m in cfg.methods.iter().filter(|&&m| m != MethodKind::Grop) {
+                let other: Vec<&TaskRecord> = at(cfg.main_speed_mps, m).collect();
+                paired.push((m, None, PairedDiff::of(&grop, &other)));
+                for d in Difficulty::ALL {
+                    let g: Vec<&TaskRecord> =
+                        grop.iter().copied().filter(|r| r.difficulty == d).collect();
+                    let o: Vec<&TaskRecord> = other
+                        .iter()
+                        .copied()
+                        .filter(|r| r.difficulty == d)
+                        .collect();
+                    paired.push((m, Some(d), PairedDiff::of(&g, &o)));
+                }
+            }
+        }
         let mut sweep = Vec::new();
         for &s in &cfg.sweep_speeds_mps {
             for &m in &cfg.sweep_methods {
@@ -897,12 +955,21 @@ impl Summary {
             main,
             sweep,
             points,
+            paired,
         }
     }
 
     /// Stats of a method and group at the main speed.
     pub fn get(&self, m: MethodKind, d: Option<Difficulty>) -> Option<Stats> {
         self.main
+            .iter()
+            .find(|(mm, dd, _)| *mm == m && *dd == d)
+            .map(|x| x.2)
+    }
+
+    /// GROP minus `m`, paired over tasks, in group `d` (None: all tasks).
+    pub fn paired_get(&self, m: MethodKind, d: Option<Difficulty>) -> Option<PairedDiff> {
+        self.paired
             .iter()
             .find(|(mm, dd, _)| *mm == m && *dd == d)
             .map(|x| x.2)
@@ -929,13 +996,17 @@ impl Summary {
                     .filter_map(|&m| self.get(m, Some(d)).map(|s| (m, s.completion)))
                     .max_by(|a, b| a.1.total_cmp(&b.1));
                 if let Some((m, c)) = best_other {
+                    let diff = self.paired_get(m, Some(d)).unwrap_or_default();
                     out.push((
                         format!(
-                            "{}: GROP has the highest completion ({:.3} vs best other {} {:.3})",
+                            "{}: GROP has the highest completion ({:.3} vs best other {} {:.3}; \
+                             paired difference {:+.3} ± {:.3} standard error)",
                             d.name(),
                             gs.completion,
                             m.name(),
-                            c
+                            c,
+                            diff.mean,
+                            diff.std_error
                         ),
                         gs.completion > c,
                     ));
@@ -1013,6 +1084,30 @@ impl Summary {
                 cell(None),
                 calls
             );
+        }
+        if !self.paired.is_empty() {
+            let _ = writeln!(
+                s,
+                "\nGROP minus each method, completion paired over the same tasks: mean difference ± standard error\n"
+            );
+            let _ = writeln!(s, "| method | easy | normal | hard | all |");
+            let _ = writeln!(s, "|---|---|---|---|---|");
+            for &m in cfg.methods.iter().filter(|&&m| m != MethodKind::Grop) {
+                let cell = |d| {
+                    self.paired_get(m, d)
+                        .map(|x| format!("{:+.3} ± {:.3}", x.mean, x.std_error))
+                        .unwrap_or_default()
+                };
+                let _ = writeln!(
+                    s,
+                    "| {} | {} | {} | {} | {} |",
+                    m.name(),
+                    cell(Some(Difficulty::Easy)),
+                    cell(Some(Difficulty::Normal)),
+                    cell(Some(Difficulty::Hard)),
+                    cell(None)
+                );
+            }
         }
         if !self.sweep.is_empty() {
             let _ = writeln!(
@@ -1094,6 +1189,41 @@ mod tests {
         assert_eq!(s.mean_time_s, 20.0);
         assert_eq!(s.std_time_s, 10.0);
         assert_eq!(Stats::of(&[]), Stats::default());
+    }
+
+    #[test]
+    fn paired_difference_matches_tasks() {
+        let r = |task, method, placed| TaskRecord {
+            task,
+            scene: 0,
+            n_chairs: 15,
+            speed_mps: 0.4,
+            method,
+            difficulty: Difficulty::Easy,
+            servable_area_m2: 1.0,
+            objects: 3,
+            placed,
+            time_s: 1.0,
+            distance_m: 0.0,
+            predicted_f: 0.0,
+            predicted_cost_s: 0.0,
+            motion_planner_calls: 0,
+            steps: String::new(),
+        };
+        let a = [
+            r(0, "GROP", 3),
+            r(1, "GROP", 2),
+            r(2, "GROP", 3),
+            r(7, "GROP", 0),
+        ];
+        // Listed in another order; task 7 has no partner and is left out.
+        let b = [r(2, "DVH", 0), r(0, "DVH", 3), r(1, "DVH", 2)];
+        let d = PairedDiff::of(&a.iter().collect::<Vec<_>>(), &b.iter().collect::<Vec<_>>());
+        assert_eq!(d.tasks, 3);
+        // Differences 0, 0, 1: mean 1/3, sample sd sqrt(1/3), se sqrt(1/9).
+        assert!((d.mean - 1.0 / 3.0).abs() < 1e-12);
+        assert!((d.std_error - (1.0f64 / 9.0).sqrt()).abs() < 1e-12);
+        assert!(PairedDiff::of(&[], &[]).std_error.is_nan());
     }
 
     #[test]

@@ -35,11 +35,24 @@ fn main() -> TractResult<()> {
             r
         })?;
     }
+    // The same plan without the per-operator timing, for the total.
+    let mut plain: Vec<f64> = (0..iters)
+        .map(|_| {
+            let t = Instant::now();
+            state.run(tvec!(input.clone())).expect("run");
+            t.elapsed().as_secs_f64() * 1e6
+        })
+        .collect();
+    plain.sort_by(f64::total_cmp);
     let n = (iters - iters / 10) as f64;
     let total: f64 = per_node.values().map(|v| v.1).sum::<f64>() / n;
     let mut rows: Vec<_> = per_node.into_values().collect();
     rows.sort_by(|a, b| b.1.total_cmp(&a.1));
-    println!("batch {batch}: {total:.1} us per run in operators");
+    println!(
+        "batch {batch}: {total:.1} us per run in operators (instrumented), plain run p50 {:.1} us, {} operators",
+        plain[plain.len() / 2],
+        rows.len()
+    );
     for (name, us) in rows {
         println!("{:8.2} us  {name}", us / n);
     }

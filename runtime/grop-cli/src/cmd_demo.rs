@@ -60,10 +60,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let problem = TaskProblem::from_world(&scene, &robot, &targets, &mut psi)?;
     let perceived = started.elapsed();
     let grid = OccupancyGrid::from_scene(&scene, &robot);
-    let mut travel = GridTravelTime {
-        grid: &grid,
-        speed_mps: robot.speed_mps,
-    };
+    let mut travel = GridTravelTime::new(&grid, robot.speed_mps);
     let config = PlannerConfig::for_robot(&robot);
     let planned = Planner::new(method, config).plan(&problem, &mut travel, args.world.seed)?;
     let decided = started.elapsed();

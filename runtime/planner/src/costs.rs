@@ -2,12 +2,12 @@
 //! a^n))`) between the start, the loading station and the chosen navigation goals.
 //!
 //! [`TravelTime`] is the motion planner as the task-level planners see it; [`GridTravelTime`] is
-//! the real one (A*/Theta* on the world's 0.1 m occupancy grid at the robot's speed). [`LegCache`]
+//! the real one (shortest any-angle paths on the world's 0.1 m occupancy grid at the robot's speed). [`LegCache`]
 //! asks it at most once per unordered pair of nodes and counts the calls (PETLON's measure).
 
 use crate::problem::TaskProblem;
 use crate::task::PlanningTable;
-use world::nav::OccupancyGrid;
+use world::nav::{NavEndpoint, OccupancyGrid};
 
 /// The navigation motion planner as a cost oracle.
 pub trait TravelTime {
@@ -23,20 +23,58 @@ impl<T: TravelTime + ?Sized> TravelTime for &mut T {
 }
 
 /// Travel time along the world's occupancy grid paths at a constant cruise speed (the paper's
-/// cost; acceleration ignored).
-#[derive(Debug, Clone, Copy)]
+/// cost; acceleration ignored). Each distinct endpoint is connected to the grid's corner graph
+/// once ([`world::nav::NavEndpoint`], tens of microseconds); every further leg from or to it costs
+/// a line-of-sight check and a scan over the corners it sees.
+#[derive(Debug, Clone)]
 pub struct GridTravelTime<'g> {
-    /// The configuration-space grid of the scene.
-    pub grid: &'g OccupancyGrid,
+    grid: &'g OccupancyGrid,
+    speed_mps: f64,
+    /// Endpoints seen so far, keyed by their exact coordinates (`None`: not near a free cell).
+    endpoints: Vec<([u64; 2], Option<NavEndpoint>)>,
+}
+
+impl<'g> GridTravelTime<'g> {
+    /// Travel times on `grid` at `speed_mps`.
+    pub fn new(grid: &'g OccupancyGrid, speed_mps: f64) -> Self {
+        Self {
+            grid,
+            speed_mps,
+            endpoints: Vec::new(),
+        }
+    }
+
+    /// The grid the paths are planned on.
+    pub fn grid(&self) -> &'g OccupancyGrid {
+        self.grid
+    }
+
     /// Cruise speed (m/s).
-    pub speed_mps: f64,
+    pub fn speed_mps(&self) -> f64 {
+        self.speed_mps
+    }
+
+    /// Index of the endpoint at `xy` in the cache, connecting it on first use.
+    fn endpoint_index(&mut self, xy: (f64, f64)) -> usize {
+        let key = [xy.0.to_bits(), xy.1.to_bits()];
+        if let Some(i) = self.endpoints.iter().position(|(k, _)| *k == key) {
+            return i;
+        }
+        self.endpoints.push((key, self.grid.endpoint(xy)));
+        self.endpoints.len() - 1
+    }
 }
 
 impl TravelTime for GridTravelTime<'_> {
     fn travel_time_s(&mut self, from: (f64, f64), to: (f64, f64)) -> Option<f64> {
+        let a = self.endpoint_index(from);
+        let b = self.endpoint_index(to);
+        let (Some(a), Some(b)) = (&self.endpoints[a].1, &self.endpoints[b].1) else {
+            return None;
+        };
         self.grid
-            .plan(from, to)
-            .map(|p| p.travel_time_s(self.speed_mps))
+            .path_length_between(a, b)
+            .map(|length_m| length_m / self.speed_mps)
     }
 }
 

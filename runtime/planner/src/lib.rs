@@ -16,7 +16,7 @@
 //! // Six crops through the FCN, free cells marked.
 //! let problem = TaskProblem::from_world(&scene, &robot, &targets, &mut psi)?;
 //! let grid = world::nav::OccupancyGrid::from_scene(&scene, &robot);
-//! let mut travel = GridTravelTime { grid: &grid, speed_mps: robot.speed_mps };
+//! let mut travel = GridTravelTime::new(&grid, robot.speed_mps);
 //! let mut grop = Planner::new(MethodKind::Grop, PlannerConfig::for_robot(&robot));
 //! let decision = grop.plan(&problem, &mut travel, 42)?;
 //! println!("{}", decision.explain(5)); // F, C, U per location and the top plans

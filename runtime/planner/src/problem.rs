@@ -79,9 +79,16 @@ impl UnloadLocation {
     /// scene.
     pub fn mark_free_cells(&mut self, scene: &Scene, robot: &RobotConfig) {
         let yaw_rad = self.side.facing_yaw_rad();
+        let (mut x0, mut x1, mut y0, mut y1) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
+        for c in &self.cells {
+            (x0, x1) = (x0.min(c.xy.0), x1.max(c.xy.0));
+            (y0, y1) = (y0.min(c.xy.1), y1.max(c.xy.1));
+        }
+        // Only the chairs around the candidate area can touch a base in it.
+        let near = scene.chairs_near(robot, x0, x1, y0, y1);
         for c in self.cells.iter_mut() {
             c.free = !base_collides(
-                scene,
+                &near,
                 robot,
                 BasePose {
                     x_m: c.xy.0,

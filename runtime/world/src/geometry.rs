@@ -98,11 +98,18 @@ impl OrientedRect {
 
     /// Whether the point lies inside or on the border.
     pub fn contains_point(&self, x_m: f64, y_m: f64) -> bool {
+        let (local_x, local_y) = self.local_coordinates(x_m, y_m);
+        local_x.abs() <= self.half_length_m && local_y.abs() <= self.half_width_m
+    }
+
+    /// The point in the rectangle's frame: along its length and across it, from its centre (m).
+    pub fn local_coordinates(&self, x_m: f64, y_m: f64) -> (f64, f64) {
         let dx = x_m - self.center_x_m;
         let dy = y_m - self.center_y_m;
-        let local_x = self.cos_yaw * dx + self.sin_yaw * dy;
-        let local_y = -self.sin_yaw * dx + self.cos_yaw * dy;
-        local_x.abs() <= self.half_length_m && local_y.abs() <= self.half_width_m
+        (
+            self.cos_yaw * dx + self.sin_yaw * dy,
+            -self.sin_yaw * dx + self.cos_yaw * dy,
+        )
     }
 
     /// Whether the two rectangles overlap by more than [`TOUCH_TOLERANCE_M`]

@@ -1,6 +1,10 @@
-//! Navigation: an occupancy grid in the base's configuration space and an any-angle
-//! (Lazy Theta*) planner on it. Path length / speed is the travel time C of a navigation action
-//! (paper eq. 3).
+//! Navigation: an occupancy grid in the base's configuration space and shortest any-angle paths
+//! on it. Path length / speed is the travel time C of a navigation action (paper eq. 3).
+//!
+//! Queries are answered on the grid's corner visibility graph (module `visibility`: exact
+//! shortest paths through cell centres, all-pairs distances between obstacle corners
+//! precomputed per map, microseconds per query); Lazy Theta* over 8-connected cells is kept as
+//! the reference it is tested against and as the fallback when corners cannot connect two points.
 //!
 //! A cell is free when the base footprint, centred on the cell centre, fits at one of
 //! [`HEADINGS`] headings: the base turns in place, so a place is reachable if some heading
@@ -13,6 +17,10 @@ use std::collections::BinaryHeap;
 use crate::geometry::OrientedRect;
 use crate::robot::RobotConfig;
 use crate::scene::Scene;
+
+mod visibility;
+use visibility::CornerGraph;
+pub use visibility::NavEndpoint;
 
 /// Grid resolution (m): the authors' 0.1 m navigation cells.
 pub const NAV_CELL_M: f64 = 0.1;
@@ -31,6 +39,15 @@ pub struct NavPath {
 }
 
 impl NavPath {
+    /// The polyline through `points`, its length summed.
+    pub fn through(points: Vec<(f64, f64)>) -> Self {
+        let length_m = points
+            .windows(2)
+            .map(|w| (w[1].0 - w[0].0).hypot(w[1].1 - w[0].1))
+            .sum();
+        Self { points, length_m }
+    }
+
     /// Travel time at `speed_mps` (s): C of one navigation action.
     pub fn travel_time_s(&self, speed_mps: f64) -> f64 {
         self.length_m / speed_mps
@@ -45,6 +62,11 @@ pub struct OccupancyGrid {
     cols: usize,
     rows: usize,
     free: Vec<bool>,
+    /// Connected part of the free space each cell belongs to (8-connected moves that do not
+    /// squeeze between two blocked cells); `u32::MAX` for blocked cells.
+    component: Vec<u32>,
+    /// Corner visibility graph with all-pairs distances: the fast exact path queries.
+    graph: CornerGraph,
 }
 
 impl OccupancyGrid {
@@ -59,6 +81,8 @@ impl OccupancyGrid {
             cols,
             rows,
             free: vec![true; cols * rows],
+            component: Vec::new(),
+            graph: CornerGraph::default(),
         };
         // blocked[i] has bit h set when heading h collides at cell i.
         let mut blocked = vec![0u8; cols * rows];
@@ -138,6 +162,8 @@ impl OccupancyGrid {
         for (cell, mask) in grid.free.iter_mut().zip(&blocked) {
             *cell = *mask != all_blocked;
         }
+        grid.component = grid.label_components();
+        grid.graph = CornerGraph::build(&grid);
         grid
     }
 
@@ -262,32 +288,52 @@ impl OccupancyGrid {
         true
     }
 
-    /// Shortest any-angle path from `from` to `to` (Lazy Theta* over 8-connected cells), or
-    /// `None` when either end is not near a free cell or no path exists. The exact endpoints
-    /// replace the first and last cell centres.
+    /// Shortest any-angle path from `from` to `to`, or `None` when either end is not near a free
+    /// cell or no path exists. Corners of the path are cell centres, joined by segments that pass
+    /// only free cells; the exact endpoints replace the first and last cell centres. Answered on
+    /// the corner visibility graph (exact shortest paths, [`NavEndpoint`]); for many legs between
+    /// the same points, build their endpoints once and use
+    /// [`OccupancyGrid::path_length_between`].
     pub fn plan(&self, from: (f64, f64), to: (f64, f64)) -> Option<NavPath> {
+        let a = self.endpoint(from)?;
+        let b = self.endpoint(to)?;
+        self.plan_between(&a, &b)
+    }
+
+    /// Path length only (m), see [`OccupancyGrid::plan`].
+    pub fn path_length_m(&self, from: (f64, f64), to: (f64, f64)) -> Option<f64> {
+        let a = self.endpoint(from)?;
+        let b = self.endpoint(to)?;
+        self.path_length_between(&a, &b)
+    }
+
+    /// The same query answered by Lazy Theta* over 8-connected cells (a grid search per query,
+    /// ~0.5-1.5 ms in the paper's room): the reference [`OccupancyGrid::plan`] is checked
+    /// against, and its fallback.
+    pub fn plan_theta_star(&self, from: (f64, f64), to: (f64, f64)) -> Option<NavPath> {
         if !(from.0.is_finite() && from.1.is_finite() && to.0.is_finite() && to.1.is_finite()) {
             return None;
         }
         let start = self.snap(from.0, from.1)?;
         let goal = self.snap(to.0, to.1)?;
         let cells = self.theta_star(start, goal)?;
+        Some(self.path_through_cells(from, to, &cells))
+    }
+
+    /// The path from `from` through the interior cells of `cells` to `to`.
+    fn path_through_cells(
+        &self,
+        from: (f64, f64),
+        to: (f64, f64),
+        cells: &[(usize, usize)],
+    ) -> NavPath {
         let mut points: Vec<(f64, f64)> = Vec::with_capacity(cells.len() + 2);
         points.push(from);
         for &(c, r) in cells.iter().skip(1).take(cells.len().saturating_sub(2)) {
             points.push(self.cell_center(c, r));
         }
         points.push(to);
-        let length_m = points
-            .windows(2)
-            .map(|w| (w[1].0 - w[0].0).hypot(w[1].1 - w[0].1))
-            .sum();
-        Some(NavPath { points, length_m })
-    }
-
-    /// Path length only (m), see [`OccupancyGrid::plan`].
-    pub fn path_length_m(&self, from: (f64, f64), to: (f64, f64)) -> Option<f64> {
-        self.plan(from, to).map(|p| p.length_m)
+        NavPath::through(points)
     }
 
     fn theta_star(
@@ -321,16 +367,6 @@ impl OccupancyGrid {
             g: 0.0,
             index: s,
         });
-        const NEIGHBOURS: [(i64, i64); 8] = [
-            (1, 0),
-            (-1, 0),
-            (0, 1),
-            (0, -1),
-            (1, 1),
-            (1, -1),
-            (-1, 1),
-            (-1, -1),
-        ];
         while let Some(entry) = open.pop() {
             let u = entry.index;
             if closed[u] || entry.g > g_cost[u] {
@@ -397,11 +433,52 @@ impl OccupancyGrid {
         None
     }
 
+    /// Labels the connected parts of the free space (flood fill with the planner's moves).
+    fn label_components(&self) -> Vec<u32> {
+        let mut label = vec![u32::MAX; self.cols * self.rows];
+        let mut stack = Vec::new();
+        let mut next = 0u32;
+        for start in 0..label.len() {
+            if !self.free[start] || label[start] != u32::MAX {
+                continue;
+            }
+            label[start] = next;
+            stack.push(start);
+            while let Some(u) = stack.pop() {
+                let (uc, ur) = ((u % self.cols) as i64, (u / self.cols) as i64);
+                for (dc, dr) in NEIGHBOURS {
+                    let (c, r) = (uc + dc, ur + dr);
+                    if self.free_i(c, r) && self.step_allowed(uc, ur, dc, dr) {
+                        let v = r as usize * self.cols + c as usize;
+                        if label[v] == u32::MAX {
+                            label[v] = next;
+                            stack.push(v);
+                        }
+                    }
+                }
+            }
+            next += 1;
+        }
+        label
+    }
+
     /// A diagonal step may not squeeze between two blocked cells.
     fn step_allowed(&self, c: i64, r: i64, dc: i64, dr: i64) -> bool {
         dc == 0 || dr == 0 || (self.free_i(c + dc, r) && self.free_i(c, r + dr))
     }
 }
+
+/// The eight moves of the grid search.
+const NEIGHBOURS: [(i64, i64); 8] = [
+    (1, 0),
+    (-1, 0),
+    (0, 1),
+    (0, -1),
+    (1, 1),
+    (1, -1),
+    (-1, 1),
+    (-1, -1),
+];
 
 #[derive(Clone, Copy, Debug)]
 struct OpenEntry {

@@ -226,36 +226,41 @@ impl Heatmap {
     }
 }
 
-/// Everything a view can see, as gray shapes, clipped to the neighbourhood of the view.
+/// Everything a crop can see, as gray shapes (with their bounding boxes), clipped to the crop.
 struct ViewShapes {
     room: crate::scene::Room,
     tables: Vec<OrientedRect>,
+    table_bounds: Vec<(f64, f64, f64, f64)>,
     chairs: Vec<OrientedRect>,
+    chair_bounds: Vec<(f64, f64, f64, f64)>,
 }
 
 impl ViewShapes {
-    fn near(scene: &Scene, center_x_m: f64, center_y_m: f64, radius_m: f64) -> Self {
-        let close = |r: &OrientedRect| {
-            let (x0, x1, y0, y1) = r.bounds();
-            x1 >= center_x_m - radius_m
-                && x0 <= center_x_m + radius_m
-                && y1 >= center_y_m - radius_m
-                && y0 <= center_y_m + radius_m
+    /// The shapes whose bounding boxes meet `[x0, x1] x [y0, y1]`.
+    fn within(scene: &Scene, x0: f64, x1: f64, y0: f64, y1: f64) -> Self {
+        let meets = |b: &(f64, f64, f64, f64)| b.1 >= x0 && b.0 <= x1 && b.3 >= y0 && b.2 <= y1;
+        let keep = |shapes: Vec<OrientedRect>| {
+            let (mut kept, mut bounds) = (Vec::new(), Vec::new());
+            for r in shapes {
+                let b = r.bounds();
+                if meets(&b) {
+                    kept.push(r);
+                    bounds.push(b);
+                }
+            }
+            (kept, bounds)
         };
-        let mut tables: Vec<OrientedRect> = Vec::with_capacity(2);
-        tables.push(scene.banquet_table.footprint());
-        tables.push(scene.loading_table.footprint());
-        tables.retain(close);
-        let chairs = scene
-            .chairs
-            .iter()
-            .map(|c| c.footprint())
-            .filter(close)
-            .collect();
+        let (tables, table_bounds) = keep(vec![
+            scene.banquet_table.footprint(),
+            scene.loading_table.footprint(),
+        ]);
+        let (chairs, chair_bounds) = keep(scene.chairs.iter().map(|c| c.footprint()).collect());
         Self {
             room: scene.room,
             tables,
+            table_bounds,
             chairs,
+            chair_bounds,
         }
     }
 
@@ -277,13 +282,28 @@ impl ViewShapes {
         let (xa, ya) = crop_point_world(target_x_m, side, row as f64, col as f64);
         let (xb, yb) = crop_point_world(target_x_m, side, row as f64 + 1.0, col as f64 + 1.0);
         let (x0, x1, y0, y1) = (xa.min(xb), xa.max(xb), ya.min(yb), ya.max(yb));
-        let touches = |r: &OrientedRect| {
-            let (rx0, rx1, ry0, ry1) = r.bounds();
+        let touches = |&(rx0, rx1, ry0, ry1): &(f64, f64, f64, f64)| {
             rx1 >= x0 && rx0 <= x1 && ry1 >= y0 && ry0 <= y1
         };
         let inside_room = self.room.contains(x0, y0) && self.room.contains(x1, y1);
-        if inside_room && !self.chairs.iter().any(touches) {
-            if !self.tables.iter().any(touches) {
+        // Chairs: a cell strictly apart from every chair (separating axis) sees none in any
+        // sub-sample; a cell with all four corners in one chair (convex) sees it in all of them,
+        // and a chair hides the table under it. Only cells on a chair's outline are sub-sampled.
+        let mut chair_edge = false;
+        for (chair, _) in self
+            .chairs
+            .iter()
+            .zip(&self.chair_bounds)
+            .filter(|(_, b)| touches(b))
+        {
+            match cell_relation(chair, x0, x1, y0, y1) {
+                Relation::Apart => {}
+                Relation::Inside if inside_room => return CHAIR_GRAY,
+                _ => chair_edge = true,
+            }
+        }
+        if inside_room && !chair_edge {
+            if !self.table_bounds.iter().any(touches) {
                 return FLOOR_GRAY;
             }
             // Table shapes are convex: all four corners inside means the whole cell is.
@@ -312,15 +332,50 @@ impl ViewShapes {
     }
 }
 
+/// Where an axis-aligned cell lies relative to a rectangle.
+enum Relation {
+    /// No point of the cell is in the rectangle (separated by more than rounding).
+    Apart,
+    /// Every point of the cell is in the rectangle.
+    Inside,
+    /// Anything else.
+    Partial,
+}
+
+/// The cell `[x0, x1] x [y0, y1]` against `rect`, conservatively: `Apart` and `Inside` only when
+/// certain. The caller has checked that the bounding boxes touch, so the cell's axes do not
+/// separate them; the rectangle's own axes are tested here.
+fn cell_relation(rect: &OrientedRect, x0: f64, x1: f64, y0: f64, y1: f64) -> Relation {
+    // Margin well above rounding, far below the sub-sample spacing (1/8 of a 6.25 cm cell).
+    const EPS: f64 = 1e-9;
+    let corners = [(x0, y0), (x1, y0), (x0, y1), (x1, y1)];
+    let local = corners.map(|(x, y)| rect.local_coordinates(x, y));
+    let (hl, hw) = (rect.half_length_m, rect.half_width_m);
+    let apart = local.iter().all(|l| l.0 > hl + EPS)
+        || local.iter().all(|l| l.0 < -hl - EPS)
+        || local.iter().all(|l| l.1 > hw + EPS)
+        || local.iter().all(|l| l.1 < -hw - EPS);
+    if apart {
+        Relation::Apart
+    } else if corners.iter().all(|&(x, y)| rect.contains_point(x, y)) {
+        Relation::Inside
+    } else {
+        Relation::Partial
+    }
+}
+
 /// The grayscale crop of `side` for a target at `target_x_m`: 32 x 64, row-major, exactly the
 /// FCN's input (the far crop already rotated 180 degrees).
 pub fn render_crop(scene: &Scene, target_x_m: f64, side: Side) -> [u8; CROP_CELLS] {
-    let shapes = ViewShapes::near(
-        scene,
+    // The crop's extent in the world, one cell wider all round.
+    let (xa, ya) = crop_point_world(target_x_m, side, -1.0, -1.0);
+    let (xb, yb) = crop_point_world(
         target_x_m,
-        TABLE_CENTER_Y_M,
-        0.5 * VIEW_SIZE_M + CELL_SIZE_M,
+        side,
+        CROP_ROWS as f64 + 1.0,
+        CROP_COLS as f64 + 1.0,
     );
+    let shapes = ViewShapes::within(scene, xa.min(xb), xa.max(xb), ya.min(yb), ya.max(yb));
     let mut crop = [0u8; CROP_CELLS];
     for row in 0..CROP_ROWS {
         for col in 0..CROP_COLS {
