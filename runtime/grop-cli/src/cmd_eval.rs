@@ -89,6 +89,9 @@ pub struct Args {
     /// GROP's Smp draws per (target, side), keeping the best (paper: 1).
     #[arg(long, default_value_t = 1)]
     pub goal_draws: usize,
+    /// Success bonus R of U = R F - C (GROP and FCN-Planning); the robot file's (40) when absent.
+    #[arg(long)]
+    pub success_bonus: Option<f64>,
     /// Baselines' goal choice.
     #[arg(long, value_enum, default_value_t = Goals::Paper)]
     pub baseline_goals: Goals,
@@ -125,7 +128,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         ..EvalConfig::default()
     };
     cfg.planner = planner::methods::PlannerConfig {
-        success_bonus_r: robot.success_bonus_r,
+        success_bonus_r: args.success_bonus.unwrap_or(robot.success_bonus_r),
         aggregation: match args.aggregation {
             Aggregation::Sum => grop_select_aggregation(false),
             Aggregation::Product => grop_select_aggregation(true),
@@ -175,10 +178,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let csv = args.out_dir.join("eval_tasks.csv");
     experiments::write_csv(&csv, &records)?;
     let mut md = format!(
-        "<!-- written by `grop eval` ({} tasks, evaluator {:?}, seed {}, aggregation {:?}, goal draws {}, baseline goals {:?}) -->\n\n",
+        "<!-- written by `grop eval` ({} tasks, evaluator {:?}, seed {}, R {}, aggregation {:?}, goal draws {}, baseline goals {:?}) -->\n\n",
         workload.tasks.len(),
         args.evaluator,
         args.seed,
+        cfg.planner.success_bonus_r,
         args.aggregation,
         args.goal_draws,
         args.baseline_goals

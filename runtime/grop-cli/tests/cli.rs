@@ -87,6 +87,50 @@ fn demo_names_a_bad_method_and_a_missing_model() {
 }
 
 #[test]
+fn eval_writes_tables_and_names_a_bad_success_bonus() {
+    let dir = tempfile::tempdir().unwrap();
+    let out_dir = dir.path().join("exp");
+    let cache = dir.path().join("gt.json");
+    let o = grop(&[
+        "eval",
+        "--model",
+        &model(),
+        "--scenes-per-chair-count",
+        "1",
+        "--tasks-per-scene",
+        "2",
+        "--no-sweep",
+        "--success-bonus",
+        "100",
+        "--out-dir",
+        out_dir.to_str().unwrap(),
+        "--cache",
+        cache.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    let summary = std::fs::read_to_string(out_dir.join("summary.md")).unwrap();
+    assert!(summary.contains("6 tasks") && summary.contains("R 100"), "{summary}");
+    assert!(summary.contains("GROP minus each method"), "{summary}");
+    let csv = std::fs::read_to_string(out_dir.join("eval_tasks.csv")).unwrap();
+    // Header + 6 tasks x 5 methods.
+    assert_eq!(csv.lines().count(), 1 + 6 * 5);
+    assert!(out_dir.join("fig5.svg").exists());
+
+    let o = grop(&[
+        "eval",
+        "--model",
+        &model(),
+        "--success-bonus=-1",
+        "--out-dir",
+        out_dir.to_str().unwrap(),
+        "--cache",
+        cache.to_str().unwrap(),
+    ]);
+    assert!(!o.status.success());
+    assert!(text(&o).contains("success_bonus_r"), "{}", text(&o));
+}
+
+#[test]
 fn render_writes_picture_crops_and_scene() {
     let dir = tempfile::tempdir().unwrap();
     let png = dir.path().join("r.png");
