@@ -58,6 +58,9 @@ pub struct EvalTask {
     pub crop: [u8; 2048],
     /// Success fraction of `trials_per_cell` trials per candidate cell.
     pub truth: Heatmap,
+    /// 1 on the candidate cells where the base, commanded there facing the table, is
+    /// collision-free; 0 elsewhere.
+    pub free: Heatmap,
 }
 
 /// Scenes, robot and tasks of one evaluation.
@@ -117,6 +120,7 @@ pub fn build_eval_set(robot: &RobotConfig, spec: &EvalSpec) -> Result<EvalSet, E
                 target,
                 side,
                 crop: render_crop(s, target[0], side),
+                free: free_cells(s, robot, target, side),
                 truth: trial_sim::ground_truth_heatmap(
                     s,
                     robot,
@@ -134,6 +138,24 @@ pub fn build_eval_set(robot: &RobotConfig, spec: &EvalSpec) -> Result<EvalSet, E
         scenes,
         tasks,
     })
+}
+
+/// 1 on the candidate cells of (target, side) where the base, commanded to the cell centre facing
+/// the table, collides with nothing; 0 elsewhere.
+pub fn free_cells(scene: &Scene, robot: &RobotConfig, target: [f64; 3], side: Side) -> Heatmap {
+    let mut free = Heatmap::zeros();
+    for (r, c) in planner::problem::candidate_cells() {
+        let (x_m, y_m) = world::view::cell_center_world(target[0], side, r, c);
+        let pose = world::BasePose {
+            x_m,
+            y_m,
+            yaw_rad: side.facing_yaw_rad(),
+        };
+        if !world::base_collides(scene, robot, pose) {
+            free.set(r, c, 1.0);
+        }
+    }
+    free
 }
 
 /// Largest number of queries per evaluator call: both sides of three targets, as the planner asks.
@@ -160,7 +182,7 @@ pub fn evaluate(
         let out = &mut out[..chunk.len()];
         evaluator.evaluate(&queries, out)?;
         for (t, h) in chunk.iter().zip(out.iter()) {
-            acc.add(h, &t.truth);
+            acc.add(h, &t.truth, Some(&t.free));
         }
     }
     Ok(acc.report(evaluator.name()))

@@ -36,6 +36,18 @@ pub fn smp_expected_success(predicted: &Heatmap, truth: &Heatmap) -> f64 {
     if sp > 0.0 { spy / sp } else { 0.0 }
 }
 
+/// As [`smp_expected_success`], with Smp drawing only among the cells where `free` is positive
+/// (the obstacle-free cells, as GROP draws by default: `PlannerConfig::free_goals_only`).
+pub fn smp_expected_success_free(predicted: &Heatmap, truth: &Heatmap, free: &Heatmap) -> f64 {
+    let mut masked = predicted.clone();
+    for (v, f) in masked.values_mut().iter_mut().zip(free.values()) {
+        if *f <= 0.0 {
+            *v = 0.0;
+        }
+    }
+    smp_expected_success(&masked, truth)
+}
+
 /// True success probability of a goal at the prediction's best cell (the "best-of-n goals"
 /// limit of Smp): mean true success fraction over the candidate cells that reach the predicted
 /// maximum (ties averaged, so a flat binary map is not credited for a lucky first cell); 0 when
@@ -73,13 +85,16 @@ pub struct MetricsAccumulator {
     f_pred: f64,
     f_true: f64,
     smp_success: f64,
+    smp_success_free: f64,
+    smp_success_free_true: f64,
     argmax_success: f64,
     argmax_success_true: f64,
 }
 
 impl MetricsAccumulator {
-    /// Adds one task's heatmaps (prediction and ground truth, same layout).
-    pub fn add(&mut self, predicted: &Heatmap, truth: &Heatmap) {
+    /// Adds one task's heatmaps (prediction and ground truth, same layout) and which candidate
+    /// cells are obstacle-free (`free` > 0; `None`: all of them).
+    pub fn add(&mut self, predicted: &Heatmap, truth: &Heatmap, free: Option<&Heatmap>) {
         for (r, c) in candidate_cells() {
             let i = r * CROP_COLS + c;
             let p = f64::from(predicted.values()[i]).clamp(0.0, 1.0);
@@ -101,6 +116,10 @@ impl MetricsAccumulator {
         self.f_pred += f_pred;
         self.f_true += f_true;
         self.smp_success += smp_expected_success(predicted, truth);
+        let all_free = Heatmap::from_values([1.0; world::view::CROP_CELLS]);
+        let free = free.unwrap_or(&all_free);
+        self.smp_success_free += smp_expected_success_free(predicted, truth, free);
+        self.smp_success_free_true += smp_expected_success_free(truth, truth, free);
         self.argmax_success += argmax_success(predicted, truth);
         self.argmax_success_true += argmax_success(truth, truth);
     }
@@ -125,6 +144,8 @@ impl MetricsAccumulator {
             f_mean_true: self.f_true / t,
             smp_success: self.smp_success / t,
             smp_success_true: self.f_true / t,
+            smp_success_free: self.smp_success_free / t,
+            smp_success_free_true: self.smp_success_free_true / t,
             argmax_success: self.argmax_success / t,
             argmax_success_true: self.argmax_success_true / t,
         }
@@ -159,6 +180,11 @@ pub struct QualityReport {
     /// other heatmaps: drawing in proportion to the value also sends the robot to marginal cells,
     /// which a map that is 1 only on a safe core avoids.
     pub smp_success_true: f64,
+    /// Mean true success probability of the goal Smp draws from the prediction among the
+    /// obstacle-free cells only (GROP's default draw).
+    pub smp_success_free: f64,
+    /// The same for the true heatmap.
+    pub smp_success_free_true: f64,
     /// Mean true success of the goal at the prediction's maximum (ties averaged).
     pub argmax_success: f64,
     /// The same at the true heatmap's maximum (sampling noise of the truth makes it optimistic).
@@ -169,7 +195,7 @@ impl QualityReport {
     /// One markdown table row (see [`QualityReport::markdown_header`]).
     pub fn markdown_row(&self) -> String {
         format!(
-            "| {} | {:.4} | {:.4} | {:.4} | {:.4} | {:.3} | {:.3} | {:.3} |",
+            "| {} | {:.4} | {:.4} | {:.4} | {:.4} | {:.3} | {:.3} | {:.3} | {:.3} |",
             self.evaluator,
             self.mae,
             self.brier,
@@ -177,20 +203,24 @@ impl QualityReport {
             self.f_abs_err,
             self.f_mean_pred,
             self.smp_success,
+            self.smp_success_free,
             self.argmax_success
         )
     }
 
     /// Header of [`QualityReport::markdown_row`].
     pub fn markdown_header() -> &'static str {
-        "| evaluator | MAE | Brier | ECE | \\|F_hat - F\\| | mean F_hat | success of Smp goal | success of argmax goal |\n|---|---|---|---|---|---|---|---|"
+        "| evaluator | MAE | Brier | ECE | \\|F_hat - F\\| | mean F_hat | success of Smp goal | of Smp goal, free cells | success of argmax goal |\n|---|---|---|---|---|---|---|---|---|"
     }
 
     /// The row the true heatmaps themselves would get on the task-level columns.
     pub fn markdown_truth_row(&self) -> String {
         format!(
-            "| (true heatmap) | - | - | - | - | {:.3} | {:.3} | {:.3} |",
-            self.f_mean_true, self.smp_success_true, self.argmax_success_true
+            "| (true heatmap) | - | - | - | - | {:.3} | {:.3} | {:.3} | {:.3} |",
+            self.f_mean_true,
+            self.smp_success_true,
+            self.smp_success_free_true,
+            self.argmax_success_true
         )
     }
 }
@@ -215,7 +245,7 @@ mod tests {
             truth.set(r, c, (k % 5) as f32 / 4.0);
         }
         let mut acc = MetricsAccumulator::default();
-        acc.add(&truth, &truth);
+        acc.add(&truth, &truth, None);
         let rep = acc.report("truth");
         assert_eq!(rep.cells, 192);
         assert!(rep.mae < 1e-12 && rep.ece < 1e-12 && rep.f_abs_err < 1e-12);
@@ -238,7 +268,7 @@ mod tests {
             truth.set(r, c, (k % 2) as f32);
         }
         let mut acc = MetricsAccumulator::default();
-        acc.add(&uniform(0.5), &truth);
+        acc.add(&uniform(0.5), &truth, None);
         let rep = acc.report("half");
         assert!((rep.mae - 0.5).abs() < 1e-12);
         assert!((rep.brier - 0.25).abs() < 1e-12);
@@ -254,7 +284,7 @@ mod tests {
     #[test]
     fn overconfident_prediction_is_miscalibrated() {
         let mut acc = MetricsAccumulator::default();
-        acc.add(&uniform(0.95), &uniform(0.5));
+        acc.add(&uniform(0.95), &uniform(0.5), None);
         let rep = acc.report("over");
         assert!((rep.ece - 0.45).abs() < 1e-6, "{}", rep.ece);
     }
@@ -265,7 +295,7 @@ mod tests {
         pred.set(0, 0, 1.0);
         pred.set(*CANDIDATE_ROWS.end() + 1, *CANDIDATE_COLS.start(), 1.0);
         let mut acc = MetricsAccumulator::default();
-        acc.add(&pred, &uniform(0.3));
+        acc.add(&pred, &uniform(0.3), None);
         assert!(acc.report("x").mae < 1e-7);
     }
 
@@ -285,5 +315,29 @@ mod tests {
         assert!((smp_expected_success(&pred, &truth) - 1.0).abs() < 1e-12);
         pred.set(10, 31, 0.2);
         assert!((smp_expected_success(&pred, &truth) - 0.5).abs() < 1e-12);
+    }
+
+    #[test]
+    fn smp_success_free_draws_among_free_cells_only() {
+        let mut truth = Heatmap::zeros();
+        truth.set(10, 30, 1.0);
+        let mut pred = Heatmap::zeros();
+        pred.set(10, 30, 0.2);
+        pred.set(10, 31, 0.6);
+        let mut free = Heatmap::zeros();
+        free.set(10, 30, 1.0);
+        assert!((smp_expected_success(&pred, &truth) - 0.25).abs() < 1e-6);
+        assert!((smp_expected_success_free(&pred, &truth, &free) - 1.0).abs() < 1e-12);
+        // No prediction on a free cell: no goal.
+        assert_eq!(
+            smp_expected_success_free(&pred, &truth, &Heatmap::zeros()),
+            0.0
+        );
+        let mut acc = MetricsAccumulator::default();
+        acc.add(&pred, &truth, Some(&free));
+        let r = acc.report("x");
+        assert!((r.smp_success - 0.25).abs() < 1e-6);
+        assert!((r.smp_success_free - 1.0).abs() < 1e-12);
+        assert!((r.smp_success_free_true - 1.0).abs() < 1e-12);
     }
 }

@@ -55,6 +55,7 @@ pub fn metric(report: &QualityReport, name: &str) -> Option<f64> {
         "ece" => report.ece,
         "f_abs_err" => report.f_abs_err,
         "smp_success" => report.smp_success,
+        "smp_success_free" => report.smp_success_free,
         "argmax_success" => report.argmax_success,
         _ => return None,
     })
@@ -77,6 +78,8 @@ pub fn parse_model_card(card: &str) -> Result<Vec<Bound>, ThresholdError> {
         f_mean_true: 0.0,
         smp_success: 0.0,
         smp_success_true: 0.0,
+        smp_success_free: 0.0,
+        smp_success_free_true: 0.0,
         argmax_success: 0.0,
         argmax_success_true: 0.0,
     };
@@ -172,11 +175,20 @@ pub fn not_better_than(candidate: &QualityReport, baseline: &QualityReport) -> V
             )
         })
         .collect();
-    if candidate.smp_success <= baseline.smp_success {
-        out.push(format!(
-            "smp_success: {} {:.4} is not above {} {:.4}",
-            candidate.evaluator, candidate.smp_success, baseline.evaluator, baseline.smp_success
-        ));
+    for (name, c, b) in [
+        ("smp_success", candidate.smp_success, baseline.smp_success),
+        (
+            "smp_success_free",
+            candidate.smp_success_free,
+            baseline.smp_success_free,
+        ),
+    ] {
+        if c <= b {
+            out.push(format!(
+                "{name}: {} {c:.4} is not above {} {b:.4}",
+                candidate.evaluator, baseline.evaluator
+            ));
+        }
     }
     out
 }
@@ -235,6 +247,8 @@ mod tests {
             f_mean_true: 0.0,
             smp_success: 0.7,
             smp_success_true: 0.8,
+            smp_success_free: 0.72,
+            smp_success_free_true: 0.85,
             argmax_success: 0.9,
             argmax_success_true: 0.95,
         };
@@ -248,8 +262,13 @@ mod tests {
         better.ece = -1.0;
         better.f_abs_err = -1.0;
         better.smp_success = 0.9;
+        better.smp_success_free = 0.95;
         assert!(not_better_than(&better, &r).is_empty());
         better.brier = r.brier;
         assert_eq!(not_better_than(&better, &r).len(), 1);
+        better.smp_success_free = r.smp_success_free;
+        let lines = not_better_than(&better, &r);
+        assert_eq!(lines.len(), 2);
+        assert!(lines[1].starts_with("smp_success_free"), "{lines:?}");
     }
 }

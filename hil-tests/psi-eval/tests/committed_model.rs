@@ -46,8 +46,9 @@ fn committed_model_meets_its_model_card() {
         "model card thresholds not met:\n{}",
         broken.join("\n")
     );
-    // Error metrics only: see docs/fcn.md for why no calibrated heatmap beats the binary map on
-    // the success of proportional (Smp) draws.
+    // Error metrics only: see docs/fcn.md ("Quality") for why no calibrated heatmap beats the
+    // binary map on the success of the paper's proportional (Smp) draws, and why over the free
+    // cells even the true heatmap is only level with it; the FCN's edge shows in the planner.
     let worse: Vec<String> = not_better_than(&fcn_report, &binary_report)
         .into_iter()
         .filter(|l| !l.starts_with("smp_success"))

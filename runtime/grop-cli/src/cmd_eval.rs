@@ -9,7 +9,7 @@ use anyhow::Context;
 use experiments::{EvalConfig, HeatmapSet, Summary, Workload};
 use planner::feasibility::FcnEvaluator;
 use planner::methods::{BaselineGoals, MethodKind};
-use psi_eval::heuristics::OracleEvaluator;
+use psi_eval::heuristics::{BinaryAnnulusEvaluator, BlurredAnnulusEvaluator, OracleEvaluator};
 
 /// Which feasibility evaluator `Psi` feeds the planners.
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
@@ -20,6 +20,10 @@ pub enum Evaluator {
     Oracle,
     /// The very ground truth that defines difficulty (an optimistic upper bound).
     GroundTruth,
+    /// Geometric heuristic: 1 on obstacle-free cells within the arm's reach annulus, else 0.
+    Binary,
+    /// The binary heuristic blurred by the navigation noise.
+    Blurred,
 }
 
 /// How the plan's feasibility combines its pairs'.
@@ -89,6 +93,11 @@ pub struct Args {
     /// GROP's Smp draws per (target, side), keeping the best (paper: 1).
     #[arg(long, default_value_t = 1)]
     pub goal_draws: usize,
+    /// GROP draws its Smp goal from the whole heatmap, as the paper does, instead of from the
+    /// obstacle-free cells only (the default: no goal the base would collide at; Fea^t over the
+    /// same cells).
+    #[arg(long)]
+    pub paper_smp: bool,
     /// Success bonus R of U = R F - C (GROP and FCN-Planning); the robot file's (40) when absent.
     #[arg(long)]
     pub success_bonus: Option<f64>,
@@ -134,6 +143,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             Aggregation::Product => grop_select_aggregation(true),
         },
         goal_draws: args.goal_draws,
+        free_goals_only: !args.paper_smp,
         baseline_goals: match args.baseline_goals {
             Goals::Paper => BaselineGoals::Paper,
             Goals::Authors => BaselineGoals::AuthorsCode,
@@ -161,6 +171,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             let mut oracle = OracleEvaluator::new(args.trials_per_cell, args.seed ^ 0x6f72_6163);
             experiments::evaluate_heatmaps(&workload, &mut oracle)?
         }
+        Evaluator::Binary => {
+            experiments::evaluate_heatmaps(&workload, &mut BinaryAnnulusEvaluator::new())?
+        }
+        Evaluator::Blurred => {
+            experiments::evaluate_heatmaps(&workload, &mut BlurredAnnulusEvaluator::new())?
+        }
         Evaluator::Fcn => {
             let mut fcn = FcnEvaluator::load(&args.model)
                 .with_context(|| format!("loading FCN model {}", args.model.display()))?;
@@ -178,13 +194,18 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let csv = args.out_dir.join("eval_tasks.csv");
     experiments::write_csv(&csv, &records)?;
     let mut md = format!(
-        "<!-- written by `grop eval` ({} tasks, evaluator {:?}, seed {}, R {}, aggregation {:?}, goal draws {}, baseline goals {:?}) -->\n\n",
+        "<!-- written by `grop eval` ({} tasks, evaluator {:?}, seed {}, R {}, aggregation {:?}, goal draws {}{}, baseline goals {:?}) -->\n\n",
         workload.tasks.len(),
         args.evaluator,
         args.seed,
         cfg.planner.success_bonus_r,
         args.aggregation,
         args.goal_draws,
+        if args.paper_smp {
+            ", paper Smp (whole heatmap)"
+        } else {
+            ""
+        },
         args.baseline_goals
     );
     md.push_str(&summary.markdown(&cfg));

@@ -109,12 +109,40 @@ fn eval_writes_tables_and_names_a_bad_success_bonus() {
     ]);
     assert!(o.status.success(), "{}", text(&o));
     let summary = std::fs::read_to_string(out_dir.join("summary.md")).unwrap();
-    assert!(summary.contains("6 tasks") && summary.contains("R 100"), "{summary}");
+    assert!(
+        summary.contains("6 tasks") && summary.contains("R 100"),
+        "{summary}"
+    );
     assert!(summary.contains("GROP minus each method"), "{summary}");
     let csv = std::fs::read_to_string(out_dir.join("eval_tasks.csv")).unwrap();
     // Header + 6 tasks x 5 methods.
     assert_eq!(csv.lines().count(), 1 + 6 * 5);
     assert!(out_dir.join("fig5.svg").exists());
+
+    // A geometric heuristic as Psi, GROP alone, the paper's Smp.
+    let o = grop(&[
+        "eval",
+        "--evaluator",
+        "binary",
+        "--methods",
+        "grop",
+        "--paper-smp",
+        "--scenes-per-chair-count",
+        "1",
+        "--tasks-per-scene",
+        "1",
+        "--no-sweep",
+        "--out-dir",
+        out_dir.to_str().unwrap(),
+        "--cache",
+        cache.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    let summary = std::fs::read_to_string(out_dir.join("summary.md")).unwrap();
+    assert!(
+        summary.contains("evaluator Binary") && summary.contains("paper Smp"),
+        "{summary}"
+    );
 
     let o = grop(&[
         "eval",

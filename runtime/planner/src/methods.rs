@@ -104,7 +104,8 @@ pub enum SearchMode {
     Exact,
 }
 
-/// Planner settings. `Default` is the paper's GROP on the paper's robot.
+/// Planner settings. `Default` is the paper's GROP on the paper's robot, except that GROP draws its goals
+/// over obstacle-free cells only ([`PlannerConfig::free_goals_only`]; `false` is the paper).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PlannerConfig {
     /// Success bonus `R` of eq. 1 (paper: 40).
@@ -129,6 +130,14 @@ pub struct PlannerConfig {
     /// motion-planner calls for many objects; the decision's candidate list then holds optimistic
     /// costs for plans that were never best. Off by default (the paper costs every leg).
     pub lazy_costs: bool,
+    /// GROP: read the heatmap only over the obstacle-free candidate cells (where the base,
+    /// commanded there facing the table, fits the map). Smp then never sends the base to a goal
+    /// it would collide at, and `Fea^t` (eq. 4, the expected success of an Smp draw) is computed
+    /// over the same cells, so it predicts the goals actually drawn. On by default: the paper
+    /// draws from the whole heatmap (`false`), which sends the base into known furniture whenever
+    /// the draw lands on a cell the noise might still rescue (docs/planner.md, "Smp over free
+    /// cells").
+    pub free_goals_only: bool,
 }
 
 impl Default for PlannerConfig {
@@ -142,6 +151,7 @@ impl Default for PlannerConfig {
             speed_mps: 0.4,
             baseline_goals: BaselineGoals::Paper,
             lazy_costs: false,
+            free_goals_only: true,
         }
     }
 }
@@ -371,6 +381,10 @@ impl Planner {
         Ok(())
     }
 
+    fn heat_of(&self, loc: &UnloadLocation) -> [f32; CANDIDATE_CELLS] {
+        location_heat(self.kind, &self.config, loc)
+    }
+
     /// Chooses the navigation goal of one location (Algorithm 1, line 10 for GROP).
     fn choose_goal(&self, index: usize, loc: &UnloadLocation, seed: u64) -> NavGoal {
         let mut rng = ChaCha8Rng::seed_from_u64(mix_seed(seed, GOAL_STREAM, index as u64));
@@ -381,7 +395,7 @@ impl Planner {
                 for u in us.iter_mut() {
                     *u = rng.random::<f64>();
                 }
-                match smp_best_of(&loc.heat, us) {
+                match smp_best_of(&self.heat_of(loc), us) {
                     Some(c) => (c, GoalSource::Smp),
                     None => uniform_free(loc, &mut rng),
                 }
@@ -446,6 +460,24 @@ fn uniform_free(loc: &UnloadLocation, rng: &mut ChaCha8Rng) -> (usize, GoalSourc
     }
 }
 
+/// The heatmap `method` reads for a location (goal draws and `Fea^t`): as predicted, or, for GROP
+/// with [`PlannerConfig::free_goals_only`], zero on the cells where the base collides.
+pub fn location_heat(
+    method: MethodKind,
+    config: &PlannerConfig,
+    loc: &UnloadLocation,
+) -> [f32; CANDIDATE_CELLS] {
+    let mut heat = loc.heat;
+    if config.free_goals_only && method == MethodKind::Grop {
+        for (h, c) in heat.iter_mut().zip(&loc.cells) {
+            if !c.free {
+                *h = 0.0;
+            }
+        }
+    }
+    heat
+}
+
 /// The legs (pairs of nodes) a plan drives.
 fn plan_legs(plan: &TaskPlan) -> Vec<(NavNode, NavNode)> {
     let mut legs = vec![(NavNode::Start, NavNode::Station)];
@@ -485,7 +517,7 @@ impl TaskMotionPlanner for Planner {
         let location_f: Vec<f64> = problem
             .locations
             .iter()
-            .map(|l| task_feasibility(&l.heat))
+            .map(|l| task_feasibility(&self.heat_of(l)))
             .collect();
         let goals_xy: Vec<(f64, f64)> = goals.iter().map(|g| g.xy).collect();
         let mut cache = LegCache::new(problem, &goals_xy, cfg.no_path_cost_s);
@@ -704,6 +736,58 @@ mod tests {
     use super::*;
     use crate::costs::StraightLine;
     use world::Heatmap;
+
+    /// GROP's default Smp never sends the base to a cell it collides at; the paper's does when
+    /// the heat is there, and `Fea^t` follows the cells actually drawn from.
+    #[test]
+    fn free_goals_only_keeps_goals_off_obstacles() {
+        let mut p = toy_problem();
+        for loc in &mut p.locations {
+            // Every cell but the last row's is blocked; the blocked cells carry most heat.
+            for (i, c) in loc.cells.iter_mut().enumerate() {
+                c.free = i >= CANDIDATE_CELLS - 24;
+                loc.heat[i] = if c.free { 0.2 } else { 0.9 };
+            }
+        }
+        let free = PlannerConfig::default();
+        assert!(free.free_goals_only);
+        let paper = PlannerConfig {
+            free_goals_only: false,
+            ..free
+        };
+        let (mut paper_blocked, mut draws) = (0, 0);
+        for seed in 0..20 {
+            let a = Planner::new(MethodKind::Grop, free)
+                .plan(&p, &mut StraightLine { speed_mps: 0.4 }, seed)
+                .unwrap();
+            let b = Planner::new(MethodKind::Grop, paper)
+                .plan(&p, &mut StraightLine { speed_mps: 0.4 }, seed)
+                .unwrap();
+            for (ga, gb) in a.goals.iter().zip(&b.goals) {
+                assert!(p.locations[ga.location].cells[ga.cell].free);
+                assert_eq!(ga.source, GoalSource::Smp);
+                paper_blocked += usize::from(!p.locations[gb.location].cells[gb.cell].free);
+                draws += 1;
+            }
+            // Fea^t over the free cells only: all 0.2, so 0.2; the paper's mixes in the 0.9s.
+            assert!((a.locations[0].feasibility - 0.2).abs() < 1e-6);
+            assert!(b.locations[0].feasibility > 0.8);
+        }
+        assert!(paper_blocked > draws / 2, "{paper_blocked} of {draws}");
+        // No heat on any free cell: a uniform free goal, never an obstacle.
+        for loc in &mut p.locations {
+            for (i, c) in loc.cells.iter().enumerate() {
+                loc.heat[i] = if c.free { 0.0 } else { 0.9 };
+            }
+        }
+        let a = Planner::new(MethodKind::Grop, free)
+            .plan(&p, &mut StraightLine { speed_mps: 0.4 }, 3)
+            .unwrap();
+        for g in &a.goals {
+            assert!(p.locations[g.location].cells[g.cell].free);
+            assert_eq!(g.source, GoalSource::UniformFree);
+        }
+    }
 
     fn toy_problem() -> TaskProblem {
         let mut locations = Vec::new();

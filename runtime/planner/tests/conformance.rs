@@ -8,6 +8,7 @@ use grop_select::{FeasibilityAggregation, UTILITY_TIE_EPS};
 use planner::costs::{LegCache, TravelTime};
 use planner::methods::{
     BaselineGoals, GoalSource, MethodKind, Planner, PlannerConfig, SearchMode, TaskMotionPlanner,
+    location_heat,
 };
 use planner::task::{PlanningTable, location_index, satisficing_plans};
 
@@ -27,6 +28,11 @@ fn configs() -> Vec<PlannerConfig> {
         },
         PlannerConfig {
             lazy_costs: true,
+            ..d
+        },
+        // The paper's Smp: goals from the whole heatmap.
+        PlannerConfig {
+            free_goals_only: false,
             ..d
         },
         PlannerConfig {
@@ -73,11 +79,19 @@ fn every_method_keeps_the_invariants() {
                     let any_positive = loc.heat.iter().any(|&v| v > 0.0);
                     let any_free = loc.cells.iter().any(|c| c.free);
                     match (method, cfg.baseline_goals) {
-                        // GROP draws with Smp, so never a zero cell when a positive one exists.
+                        // GROP draws with Smp, so never a zero cell when a positive one exists,
+                        // and with free_goals_only never a cell where the base collides.
                         (MethodKind::Grop, _) => {
-                            if any_positive {
+                            let read = location_heat(method, &cfg, loc);
+                            if read.iter().any(|&v| v > 0.0) {
                                 assert_eq!(g.source, GoalSource::Smp, "{ctx}");
                                 assert!(g.heat_value > 0.0, "{ctx}");
+                                if cfg.free_goals_only {
+                                    assert!(
+                                        loc.cells[g.cell].free,
+                                        "{ctx}: GROP goal on an obstacle"
+                                    );
+                                }
                             }
                         }
                         (MethodKind::Satisficing, BaselineGoals::AuthorsCode) => {
@@ -104,7 +118,8 @@ fn every_method_keeps_the_invariants() {
                 let mut cache = LegCache::new(&problem, &goals_xy, cfg.no_path_cost_s);
                 let mut table = PlanningTable::zeros(n);
                 for (i, l) in problem.locations.iter().enumerate() {
-                    table.feasibility[i] = grop_select::task_feasibility(&l.heat);
+                    table.feasibility[i] =
+                        grop_select::task_feasibility(&location_heat(method, &cfg, l));
                 }
                 cache.fill_table(&mut table, &mut oracle as &mut dyn TravelTime);
                 assert!(
