@@ -10,9 +10,7 @@ use fcn_infer::{CROP_CELLS, FcnModel, MAX_BATCH};
 fn bench(c: &mut Criterion) {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../psi-fcn.onnx");
     let mut model = FcnModel::load(&path).expect("models/psi-fcn.onnx loads");
-    let crops: Vec<[u8; CROP_CELLS]> = (0..MAX_BATCH)
-        .map(|k| std::array::from_fn(|i| ((i * 13 + k * 101) % 256) as u8))
-        .collect();
+    let crops = fcn_infer::pattern_crops(MAX_BATCH);
     let mut one = [0f32; CROP_CELLS];
     let mut six = vec![[0f32; CROP_CELLS]; MAX_BATCH];
     c.bench_function("psi_fcn_one_crop", |b| {

@@ -18,15 +18,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .iter()
         .map(|p| FcnModel::load(p))
         .collect::<Result<Vec<_>, _>>()?;
-    let crops: Vec<[u8; CROP_CELLS]> = (0..MAX_BATCH)
-        .map(|k| {
-            let mut c = [0u8; CROP_CELLS];
-            for (i, v) in c.iter_mut().enumerate() {
-                *v = ((i * 13 + k * 101) % 256) as u8;
-            }
-            c
-        })
-        .collect();
+    let crops = fcn_infer::pattern_crops(MAX_BATCH);
     let mut one = [0f32; CROP_CELLS];
     let mut six = vec![[0f32; CROP_CELLS]; MAX_BATCH];
     let mut t1 = vec![Vec::new(); models.len()];

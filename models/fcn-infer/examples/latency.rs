@@ -37,15 +37,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let t = Instant::now();
     let mut model = FcnModel::load(&path)?;
     let load_ms = t.elapsed().as_secs_f64() * 1e3;
-    let crops: Vec<[u8; CROP_CELLS]> = (0..MAX_BATCH)
-        .map(|k| {
-            let mut c = [0u8; CROP_CELLS];
-            for (i, v) in c.iter_mut().enumerate() {
-                *v = ((i * 13 + k * 101) % 256) as u8;
-            }
-            c
-        })
-        .collect();
+    let crops = fcn_infer::pattern_crops(MAX_BATCH);
     let mut one = [0f32; CROP_CELLS];
     let mut six = vec![[0f32; CROP_CELLS]; MAX_BATCH];
     let (p50_1, p99_1, mean_1) = measure(iters, || {

@@ -41,6 +41,14 @@ pub const CROP_CELLS: usize = CROP_ROWS * CROP_COLS;
 /// Largest batch one call runs: both sides of three targets.
 pub const MAX_BATCH: usize = 6;
 
+/// `count` deterministic gray-pattern crops (not scenes): the fixed inputs of the latency
+/// harnesses and benchmarks, so every timing tool feeds the model the same bytes.
+pub fn pattern_crops(count: usize) -> Vec<[u8; CROP_CELLS]> {
+    (0..count)
+        .map(|k| std::array::from_fn(|i| ((i * 13 + k * 101) % 256) as u8))
+        .collect()
+}
+
 /// Grayscale crop as rendered by `world::view::render_crop`.
 pub type Crop = [u8; CROP_CELLS];
 /// Heatmap cells in `[0, 1]`, same layout as the crop.

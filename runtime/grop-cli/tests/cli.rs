@@ -89,73 +89,59 @@ fn demo_names_a_bad_method_and_a_missing_model() {
 #[test]
 fn eval_writes_tables_and_names_a_bad_success_bonus() {
     let dir = tempfile::tempdir().unwrap();
+    let model_path = model();
     let out_dir = dir.path().join("exp");
     let cache = dir.path().join("gt.json");
-    let o = grop(&[
-        "eval",
-        "--model",
-        &model(),
-        "--scenes-per-chair-count",
-        "1",
-        "--tasks-per-scene",
-        "2",
-        "--no-sweep",
-        "--success-bonus",
-        "100",
-        "--out-dir",
-        out_dir.to_str().unwrap(),
-        "--cache",
-        cache.to_str().unwrap(),
-    ]);
-    assert!(o.status.success(), "{}", text(&o));
-    let summary = std::fs::read_to_string(out_dir.join("summary.md")).unwrap();
-    assert!(
-        summary.contains("6 tasks") && summary.contains("R 100"),
-        "{summary}"
-    );
-    assert!(summary.contains("GROP minus each method"), "{summary}");
+    // A small evaluation into the temporary folder, with `extra` settings.
+    let eval = |extra: &[&str]| {
+        let mut args = vec![
+            "eval",
+            "--model",
+            &model_path,
+            "--scenes-per-chair-count",
+            "1",
+            "--no-sweep",
+            "--out-dir",
+            out_dir.to_str().unwrap(),
+            "--cache",
+            cache.to_str().unwrap(),
+        ];
+        args.extend_from_slice(extra);
+        let o = grop(&args);
+        (o.status.success(), text(&o))
+    };
+    let summary = || std::fs::read_to_string(out_dir.join("summary.md")).unwrap();
+
+    let (ok, out) = eval(&["--tasks-per-scene", "2", "--success-bonus", "100"]);
+    assert!(ok, "{out}");
+    let s = summary();
+    assert!(s.contains("6 tasks") && s.contains("R 100"), "{s}");
+    assert!(s.contains("GROP minus each method"), "{s}");
     let csv = std::fs::read_to_string(out_dir.join("eval_tasks.csv")).unwrap();
     // Header + 6 tasks x 5 methods.
     assert_eq!(csv.lines().count(), 1 + 6 * 5);
     assert!(out_dir.join("fig5.svg").exists());
 
     // A geometric heuristic as Psi, GROP alone, the paper's Smp.
-    let o = grop(&[
-        "eval",
+    let (ok, out) = eval(&[
+        "--tasks-per-scene",
+        "1",
         "--evaluator",
         "binary",
         "--methods",
         "grop",
         "--paper-smp",
-        "--scenes-per-chair-count",
-        "1",
-        "--tasks-per-scene",
-        "1",
-        "--no-sweep",
-        "--out-dir",
-        out_dir.to_str().unwrap(),
-        "--cache",
-        cache.to_str().unwrap(),
     ]);
-    assert!(o.status.success(), "{}", text(&o));
-    let summary = std::fs::read_to_string(out_dir.join("summary.md")).unwrap();
+    assert!(ok, "{out}");
+    let s = summary();
     assert!(
-        summary.contains("evaluator Binary") && summary.contains("paper Smp"),
-        "{summary}"
+        s.contains("evaluator Binary") && s.contains("paper Smp"),
+        "{s}"
     );
 
-    let o = grop(&[
-        "eval",
-        "--model",
-        &model(),
-        "--success-bonus=-1",
-        "--out-dir",
-        out_dir.to_str().unwrap(),
-        "--cache",
-        cache.to_str().unwrap(),
-    ]);
-    assert!(!o.status.success());
-    assert!(text(&o).contains("success_bonus_r"), "{}", text(&o));
+    let (ok, out) = eval(&["--success-bonus=-1"]);
+    assert!(!ok);
+    assert!(out.contains("success_bonus_r"), "{out}");
 }
 
 #[test]

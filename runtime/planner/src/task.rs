@@ -549,7 +549,7 @@ pub fn optimise(
                 .iter()
                 .map(|f| success_bonus_r * f)
                 .collect();
-            best_order(table, &gain, None).1
+            best_order(table, &gain).1
         }
         FeasibilityAggregation::Product => best_product_plan(table, success_bonus_r),
     };
@@ -567,47 +567,58 @@ pub fn optimise(
     })
 }
 
-/// DP over (placed set, last location): maximises `sum gain[loc] - travel` from the station.
-/// `fixed_sides`: bit o set = object o must be unloaded from the far side (None = free choice).
-/// Returns (best value, the steps).
-fn best_order(
-    table: &PlanningTable,
-    gain: &[f64],
-    fixed_sides: Option<u32>,
-) -> (f64, Vec<UnloadStep>) {
+/// One unloading option of [`order_dp`]: placing `object` at unloading location `location`
+/// (`location_index` order) earns `gain`.
+#[derive(Clone, Copy, Debug)]
+struct OrderItem {
+    object: usize,
+    location: usize,
+    gain: f64,
+}
+
+/// Buffers of [`order_dp`], reused across calls.
+#[derive(Default)]
+struct OrderScratch {
+    items: Vec<OrderItem>,
+    value: Vec<f64>,
+    parent: Vec<u32>,
+}
+
+/// DP over (set of placed objects, last item): maximises `sum gain - travel` from the station
+/// over the orders that place every object once, each through one of its items.
+/// `O(2^n k^2)` for k items. Masks only grow, so increasing numeric order visits every subset
+/// before its supersets; ties keep the first found (lower last item, lower predecessor).
+/// Returns (best value net of the start -> station leg, the steps).
+fn order_dp(table: &PlanningTable, scratch: &mut OrderScratch) -> (f64, Vec<UnloadStep>) {
     let n = table.n_objects;
-    let m = 2 * n;
     let full = full_mask(n) as usize;
-    let allowed = |loc: usize| -> bool {
-        match fixed_sides {
-            None => true,
-            Some(far) => ((far >> (loc / 2)) & 1) as usize == loc % 2,
-        }
-    };
-    let states = (full + 1) * m;
-    let mut value = vec![f64::NEG_INFINITY; states];
-    let mut parent = vec![u32::MAX; states];
-    for loc in 0..m {
-        if allowed(loc) {
-            value[(1usize << (loc / 2)) * m + loc] = gain[loc] - table.station_to_location_s[loc];
-        }
+    let OrderScratch {
+        items,
+        value,
+        parent,
+    } = scratch;
+    let k = items.len();
+    let states = (full + 1) * k;
+    value.clear();
+    value.resize(states, f64::NEG_INFINITY);
+    parent.clear();
+    parent.resize(states, u32::MAX);
+    for (i, it) in items.iter().enumerate() {
+        value[(1usize << it.object) * k + i] = it.gain - table.station_to_location_s[it.location];
     }
-    // Masks only grow, so increasing numeric order visits every subset before its supersets.
-    #[allow(clippy::needless_range_loop)] // `next` indexes the gains, the legs and the states
     for mask in 1..=full {
-        for last in 0..m {
-            let v = value[mask * m + last];
+        for (last, from) in items.iter().enumerate() {
+            let v = value[mask * k + last];
             if v == f64::NEG_INFINITY {
                 continue;
             }
-            for next in 0..m {
-                let obj = next / 2;
-                if mask & (1 << obj) != 0 || !allowed(next) {
+            for (next, to) in items.iter().enumerate() {
+                if mask & (1 << to.object) != 0 {
                     continue;
                 }
-                let nm = mask | (1 << obj);
-                let nv = v + gain[next] - table.leg_s(last, next);
-                let slot = nm * m + next;
+                let nm = mask | (1 << to.object);
+                let nv = v + to.gain - table.leg_s(from.location, to.location);
+                let slot = nm * k + next;
                 if nv > value[slot] + UTILITY_TIE_EPS * 1e-3 {
                     value[slot] = nv;
                     parent[slot] = last as u32;
@@ -617,8 +628,8 @@ fn best_order(
     }
     let mut best_last = 0;
     let mut best = f64::NEG_INFINITY;
-    for last in 0..m {
-        let v = value[full * m + last];
+    for last in 0..k {
+        let v = value[full * k + last];
         if v > best {
             best = v;
             best_last = last;
@@ -626,21 +637,58 @@ fn best_order(
     }
     let mut steps = Vec::with_capacity(n);
     let mut mask = full;
-    let mut loc = best_last;
+    let mut i = best_last;
     loop {
+        let it = items[i];
         steps.push(UnloadStep {
-            object: loc / 2,
-            side: if loc % 2 == 0 { Side::Near } else { Side::Far },
+            object: it.object,
+            side: if it.location % 2 == 0 {
+                Side::Near
+            } else {
+                Side::Far
+            },
         });
-        let p = parent[mask * m + loc];
-        mask &= !(1 << (loc / 2));
+        let p = parent[mask * k + i];
+        mask &= !(1 << it.object);
         if p == u32::MAX || mask == 0 {
             break;
         }
-        loc = p as usize;
+        i = p as usize;
     }
     steps.reverse();
     (best - table.start_to_station_s, steps)
+}
+
+/// The best order and sides for additive gains (`gain[loc]`, `2n` entries): [`order_dp`] over
+/// every unloading location.
+fn best_order(table: &PlanningTable, gain: &[f64]) -> (f64, Vec<UnloadStep>) {
+    let mut scratch = OrderScratch::default();
+    scratch.items = (0..2 * table.n_objects)
+        .map(|location| OrderItem {
+            object: location / 2,
+            location,
+            gain: gain[location],
+        })
+        .collect();
+    order_dp(table, &mut scratch)
+}
+
+/// The cheapest unloading order when every object's side is fixed (`far` bit o set: object o
+/// from the far side): [`order_dp`] over one item per object, `O(2^n n^2)`.
+fn cheapest_order_with_sides(
+    table: &PlanningTable,
+    far: u32,
+    scratch: &mut OrderScratch,
+) -> (f64, Vec<UnloadStep>) {
+    scratch.items.clear();
+    scratch
+        .items
+        .extend((0..table.n_objects).map(|object| OrderItem {
+            object,
+            location: 2 * object + ((far >> object) & 1) as usize,
+            gain: 0.0,
+        }));
+    order_dp(table, scratch)
 }
 
 /// A lower bound on the cost of every plan with the sides `far` (bit o set: object o from the far
@@ -674,86 +722,6 @@ fn sides_cost_lower_bound(table: &PlanningTable, far: u32) -> f64 {
         total += upgrade;
     }
     total
-}
-
-/// Buffers of [`cheapest_order_with_sides`], reused across side assignments.
-#[derive(Default)]
-struct OrderScratch {
-    value: Vec<f64>,
-    parent: Vec<u32>,
-}
-
-/// The cheapest unloading order when every object's side is fixed (`far` bit o set: object o
-/// from the far side): the DP of [`best_order`] with zero gains, over (placed set, last object)
-/// instead of (placed set, last location), `O(2^n n^2)`. Visits states and breaks ties in the
-/// same order as `best_order(table, &[0; 2n], Some(far))`, so it returns the same plan.
-fn cheapest_order_with_sides(
-    table: &PlanningTable,
-    far: u32,
-    scratch: &mut OrderScratch,
-) -> (f64, Vec<UnloadStep>) {
-    let n = table.n_objects;
-    let full = full_mask(n) as usize;
-    let loc = |o: usize| 2 * o + ((far >> o) & 1) as usize;
-    let states = (full + 1) * n;
-    scratch.value.clear();
-    scratch.value.resize(states, f64::NEG_INFINITY);
-    scratch.parent.clear();
-    scratch.parent.resize(states, u32::MAX);
-    let (value, parent) = (&mut scratch.value, &mut scratch.parent);
-    for o in 0..n {
-        value[(1usize << o) * n + o] = -table.station_to_location_s[loc(o)];
-    }
-    for mask in 1..=full {
-        for last in 0..n {
-            let v = value[mask * n + last];
-            if v == f64::NEG_INFINITY {
-                continue;
-            }
-            for next in 0..n {
-                if mask & (1 << next) != 0 {
-                    continue;
-                }
-                let nm = mask | (1 << next);
-                let nv = v - table.leg_s(loc(last), loc(next));
-                let slot = nm * n + next;
-                if nv > value[slot] + UTILITY_TIE_EPS * 1e-3 {
-                    value[slot] = nv;
-                    parent[slot] = last as u32;
-                }
-            }
-        }
-    }
-    let mut best_last = 0;
-    let mut best = f64::NEG_INFINITY;
-    for last in 0..n {
-        let v = value[full * n + last];
-        if v > best {
-            best = v;
-            best_last = last;
-        }
-    }
-    let mut steps = Vec::with_capacity(n);
-    let mut mask = full;
-    let mut o = best_last;
-    loop {
-        steps.push(UnloadStep {
-            object: o,
-            side: if (far >> o) & 1 == 0 {
-                Side::Near
-            } else {
-                Side::Far
-            },
-        });
-        let p = parent[mask * n + o];
-        mask &= !(1 << o);
-        if p == u32::MAX || mask == 0 {
-            break;
-        }
-        o = p as usize;
-    }
-    steps.reverse();
-    (best - table.start_to_station_s, steps)
 }
 
 /// Objects up to which the product search runs the side-aware DP ([`product_plan_by_sides_dp`]);
@@ -859,7 +827,7 @@ fn product_plan_by_branch_and_bound(
     let n = table.n_objects;
     let zero_gain = vec![0.0; 2 * n];
     // Cheapest plan over every side assignment: a lower bound on each plan's cost.
-    let (neg_min_cost, cheapest) = best_order(table, &zero_gain, None);
+    let (neg_min_cost, cheapest) = best_order(table, &zero_gain);
     let min_cost_s = -neg_min_cost;
     let mut assignments: Vec<(f64, u32)> = (0..=full_mask(n))
         .map(|far| {
@@ -944,47 +912,77 @@ mod tests {
         }
     }
 
-    /// The per-object DP of the product search returns exactly what the per-location DP with
-    /// fixed sides returns (value and steps), for every side assignment.
+    /// The fixed-sides DP returns the cheapest order (checked against every permutation), and
+    /// the product search's pruning bound never exceeds it.
     #[test]
-    fn cheapest_order_with_sides_matches_the_location_dp() {
+    fn cheapest_order_with_sides_is_the_cheapest_permutation() {
         use rand::{RngExt, SeedableRng};
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(17);
         let mut scratch = OrderScratch::default();
-        for n in 1..=6 {
+        for n in 1..=5 {
             for _ in 0..5 {
-                let m = 2 * n;
                 let mut t = PlanningTable::zeros(n);
                 t.start_to_station_s = rng.random_range(0.0..20.0);
                 for v in t.station_to_location_s.iter_mut() {
                     *v = rng.random_range(1.0..30.0);
                 }
-                for i in 0..m {
-                    for j in 0..m {
-                        // Integer seconds make ties common, which exercises the tie-break.
-                        t.location_to_location_s[i * m + j] = if i == j {
-                            0.0
-                        } else {
-                            f64::from(rng.random_range(1u8..6))
-                        };
-                    }
+                for v in t.location_to_location_s.iter_mut() {
+                    // Integer seconds make ties common.
+                    *v = f64::from(rng.random_range(1u8..6));
                 }
-                let zeros = vec![0.0; m];
                 for far in 0..=full_mask(n) {
-                    let a = best_order(&t, &zeros, Some(far));
-                    let b = cheapest_order_with_sides(&t, far, &mut scratch);
-                    assert_eq!(a.0, b.0, "n {n} far {far:b}");
-                    assert_eq!(a.1, b.1, "n {n} far {far:b}");
-                    // The pruning bound never exceeds the cheapest cost with these sides.
+                    let (neg_cost, steps) = cheapest_order_with_sides(&t, far, &mut scratch);
+                    let plan = TaskPlan {
+                        load_order: (0..n).collect(),
+                        unloads: steps,
+                    };
+                    plan.validate(n).unwrap();
+                    assert!((t.plan_cost_s(&plan) + neg_cost).abs() < 1e-9);
+                    for u in &plan.unloads {
+                        assert_eq!(u.side == Side::Far, (far >> u.object) & 1 == 1);
+                    }
+                    let mut best = f64::INFINITY;
+                    for_each_permutation(n, &mut |order: &[usize]| {
+                        let unloads = order
+                            .iter()
+                            .map(|&o| UnloadStep {
+                                object: o,
+                                side: if (far >> o) & 1 == 1 {
+                                    Side::Far
+                                } else {
+                                    Side::Near
+                                },
+                            })
+                            .collect();
+                        let p = TaskPlan {
+                            load_order: (0..n).collect(),
+                            unloads,
+                        };
+                        best = best.min(t.plan_cost_s(&p));
+                    });
+                    assert!((best + neg_cost).abs() < 1e-9, "n {n} far {far:b}");
                     let lb = sides_cost_lower_bound(&t, far);
-                    assert!(
-                        lb <= -b.0 + 1e-9,
-                        "n {n} far {far:b}: bound {lb} > {}",
-                        -b.0
-                    );
+                    assert!(lb <= best + 1e-9, "n {n} far {far:b}: bound {lb} > {best}");
                 }
             }
         }
+    }
+
+    fn for_each_permutation(n: usize, f: &mut dyn FnMut(&[usize])) {
+        fn go(prefix: &mut Vec<usize>, n: usize, f: &mut dyn FnMut(&[usize])) {
+            if prefix.len() == n {
+                f(prefix);
+                return;
+            }
+            for o in 0..n {
+                if !prefix.contains(&o) {
+                    prefix.push(o);
+                    go(prefix, n, f);
+                    prefix.pop();
+                }
+            }
+        }
+        go(&mut Vec::with_capacity(n), n, f);
     }
 
     #[test]
