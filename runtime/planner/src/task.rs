@@ -662,14 +662,16 @@ fn order_dp(table: &PlanningTable, scratch: &mut OrderScratch) -> (f64, Vec<Unlo
 /// The best order and sides for additive gains (`gain[loc]`, `2n` entries): [`order_dp`] over
 /// every unloading location.
 fn best_order(table: &PlanningTable, gain: &[f64]) -> (f64, Vec<UnloadStep>) {
-    let mut scratch = OrderScratch::default();
-    scratch.items = (0..2 * table.n_objects)
-        .map(|location| OrderItem {
-            object: location / 2,
-            location,
-            gain: gain[location],
-        })
-        .collect();
+    let mut scratch = OrderScratch {
+        items: (0..2 * table.n_objects)
+            .map(|location| OrderItem {
+                object: location / 2,
+                location,
+                gain: gain[location],
+            })
+            .collect(),
+        ..OrderScratch::default()
+    };
     order_dp(table, &mut scratch)
 }
 
