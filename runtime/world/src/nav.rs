@@ -20,7 +20,7 @@ use crate::scene::Scene;
 
 mod visibility;
 use visibility::CornerGraph;
-pub use visibility::NavEndpoint;
+pub use visibility::{MAX_GRAPH_CORNERS, NavEndpoint};
 
 /// Grid resolution (m): the authors' 0.1 m navigation cells.
 pub const NAV_CELL_M: f64 = 0.1;

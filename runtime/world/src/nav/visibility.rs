@@ -29,9 +29,18 @@ pub(super) struct CornerGraph {
     next: Vec<u32>,
 }
 
+/// Most bend cells the graph is built for: Floyd-Warshall is `O(V^3)` (1,500: a few seconds), so a
+/// map with more keeps no graph and every query runs Lazy Theta* (correct, ~1 ms a query).
+pub const MAX_GRAPH_CORNERS: usize = 1500;
+
 impl CornerGraph {
-    /// Builds the graph of `grid`'s free space.
+    /// Builds the graph of `grid`'s free space (empty beyond [`MAX_GRAPH_CORNERS`] bend cells).
     pub(super) fn build(grid: &OccupancyGrid) -> Self {
+        Self::build_limited(grid, MAX_GRAPH_CORNERS)
+    }
+
+    /// Builds the graph, or an empty one when the map has more than `max_corners` bend cells.
+    pub(super) fn build_limited(grid: &OccupancyGrid, max_corners: usize) -> Self {
         // Bend cells: each corner cell (a free cell whose diagonal neighbour is blocked while
         // the two cells between them are free) and those two cells, which are orthogonally next
         // to the blocked cell: a segment through their centres can pass the blocked cell's
@@ -58,6 +67,14 @@ impl CornerGraph {
             .filter(|&i| bend[i])
             .map(|i| (i % grid.cols, i / grid.cols))
             .collect();
+        if corners.len() > max_corners {
+            log::warn!(
+                "navigation map has {} bend cells (limit {max_corners}): no corner graph, every \
+                 path query runs Lazy Theta*",
+                corners.len()
+            );
+            return Self::default();
+        }
         let v = corners.len();
         let mut dist = vec![f64::INFINITY; v * v];
         let mut next = vec![u32::MAX; v * v];
@@ -287,6 +304,22 @@ mod tests {
             assert_eq!(planned, reference, "to {to:?}");
         }
         assert!(grid.plan(from, (0.0, 7.0)).is_some());
+    }
+
+    /// A map over the corner limit keeps no graph and still answers every query (Theta*).
+    #[test]
+    fn over_the_corner_limit_queries_still_work() {
+        let scene = evaluation_scene(2, 20, 6);
+        let mut grid = OccupancyGrid::from_scene(&scene, &RobotConfig::default());
+        assert!(grid.corner_count() > 10);
+        grid.graph = CornerGraph::build_limited(&grid, 10);
+        assert_eq!(grid.corner_count(), 0);
+        let from = (scene.robot_start.x_m, scene.robot_start.y_m);
+        let to = (scene.targets[1].x_m, 6.8);
+        assert_eq!(
+            grid.plan(from, to).map(|p| p.points),
+            grid.plan_theta_star(from, to).map(|p| p.points)
+        );
     }
 
     /// Floyd-Warshall's next hops give a chain of mutually visible corners whose length is the
