@@ -32,6 +32,10 @@ pub struct Args {
     /// Planning method: grop, satisficing, petlon, dvh, fcn-planning.
     #[arg(long, default_value = "grop")]
     pub method: String,
+    /// GROP draws its goal from the whole heatmap, as the paper does, instead of from the
+    /// obstacle-free cells only (the default).
+    #[arg(long)]
+    pub paper_smp: bool,
     /// Plans to list in the explanation (best utility first).
     #[arg(long, default_value_t = 8)]
     pub top: usize,
@@ -65,7 +69,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let problem = TaskProblem::from_world(&scene, &robot, &targets, &mut psi)?;
     let perceived = started.elapsed();
     let mut travel = GridTravelTime::new(&grid, robot.speed_mps);
-    let config = PlannerConfig::for_robot(&robot);
+    let config = PlannerConfig {
+        free_goals_only: !args.paper_smp,
+        ..PlannerConfig::for_robot(&robot)
+    };
     let planned = Planner::new(method, config).plan(&problem, &mut travel, args.world.seed)?;
     let decided = started.elapsed();
     println!(
