@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # From nothing to models/psi-fcn.onnx: a fresh dataset from the simulator, then training and
-# ONNX export (about 10-15 minutes on 2 CPU cores; docs/fcn.md, "Retraining").
+# ONNX export (1.5-10 minutes on 2 CPU cores; docs/fcn.md, "Retraining").
 #
 #   bash models/training/retrain.sh [robot.toml]
 #

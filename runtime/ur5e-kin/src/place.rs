@@ -27,11 +27,13 @@ pub struct ArmMount {
 }
 
 impl Default for ArmMount {
-    /// 0.20 m ahead of the base centre on the centre line, 1.05 m above the floor, yawed by pi
-    /// so that the DH zero pose (arm stretched along the arm base's -x) points forward.
+    /// 0.10 m ahead of the base centre on the centre line, 1.05 m above the floor, yawed by pi
+    /// so that the DH zero pose (arm stretched along the arm base's -x) points forward. With it
+    /// the near rows of the candidate band are within reach and the farthest (1.03 m from the
+    /// table's centre line, 0.93 m from the arm axis) is not (DESIGN.md).
     fn default() -> Self {
         Self {
-            forward_m: 0.20,
+            forward_m: 0.10,
             lateral_m: 0.0,
             height_m: 1.05,
             yaw_rad: PI,

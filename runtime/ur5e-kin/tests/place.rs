@@ -167,7 +167,8 @@ fn tilt_extends_reach() {
         ..PlaceConfig::default()
     };
     let tilted = PlaceConfig::default();
-    let base = near_base(0.2 + 0.86); // arm axis 0.86 m from the goal
+    // Arm axis 0.86 m from the goal.
+    let base = near_base(PlaceConfig::default().mount.forward_m + 0.86);
     assert_eq!(
         plan_place(&straight, base, goal(), &[]),
         Err(PlaceFailure::OutOfReach)
