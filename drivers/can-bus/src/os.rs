@@ -1,6 +1,7 @@
 //! Small Linux helpers shared by the userspace buses: a sub-millisecond wait on a file
-//! descriptor and the host-wide monotonic clock. Used by [`VirtualCanBus`](crate::VirtualCanBus)
-//! and by the runtime's iceoryx2 services (grop-ipc).
+//! descriptor, the host-wide monotonic clock, and the reading of iceoryx2's service-open errors.
+//! Used by [`VirtualCanBus`](crate::VirtualCanBus) and by the runtime's iceoryx2 services
+//! (grop-ipc).
 
 use std::time::Duration;
 
@@ -44,4 +45,42 @@ pub fn monotonic_ns() -> u64 {
         .unwrap_or(0)
         .saturating_mul(1_000_000_000)
         .saturating_add(u64::try_from(now.tv_nsec).unwrap_or(0))
+}
+
+/// Why an iceoryx2 publish-subscribe service could not be opened, in the terms callers report.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum ServiceOpenFailure {
+    /// The service exists but already has as many nodes as it was created for.
+    NodeLimit,
+    /// The service exists with other settings or payload type (the detail names which).
+    Incompatible(String),
+    /// Anything else (shared memory, permissions, a corrupted service): report the error itself.
+    Other,
+}
+
+/// Sorts an iceoryx2 open-or-create error of a publish-subscribe service.
+pub fn service_open_failure(
+    error: &iceoryx2::service::builder::publish_subscribe::PublishSubscribeOpenOrCreateError,
+) -> ServiceOpenFailure {
+    use iceoryx2::service::builder::publish_subscribe::{
+        PublishSubscribeOpenError as Open, PublishSubscribeOpenOrCreateError as OpenOrCreate,
+    };
+    match error {
+        OpenOrCreate::PublishSubscribeOpenError(Open::ExceedsMaxNumberOfNodes) => {
+            ServiceOpenFailure::NodeLimit
+        }
+        OpenOrCreate::PublishSubscribeOpenError(
+            open @ (Open::IncompatibleTypes
+            | Open::IncompatibleMessagingPattern
+            | Open::IncompatibleAttributes
+            | Open::DoesNotSupportRequestedMinBufferSize
+            | Open::DoesNotSupportRequestedMinHistorySize
+            | Open::DoesNotSupportRequestedMinSubscriberBorrowedSamples
+            | Open::DoesNotSupportRequestedAmountOfPublishers
+            | Open::DoesNotSupportRequestedAmountOfSubscribers
+            | Open::DoesNotSupportRequestedAmountOfNodes
+            | Open::IncompatibleOverflowBehavior),
+        ) => ServiceOpenFailure::Incompatible(format!("{open:?}")),
+        _ => ServiceOpenFailure::Other,
+    }
 }

@@ -303,35 +303,15 @@ impl VirtualCanBus {
             .history_size(0)
             .enable_safe_overflow(true)
             .open_or_create()
-            .map_err(|error| {
-                use iceoryx2::service::builder::publish_subscribe::{
-                    PublishSubscribeOpenError as Open,
-                    PublishSubscribeOpenOrCreateError as OpenOrCreate,
-                };
-                match error {
-                    OpenOrCreate::PublishSubscribeOpenError(Open::ExceedsMaxNumberOfNodes) => {
-                        JoinError::BusFull {
-                            bus: bus(),
-                            max_nodes,
-                        }
-                    }
-                    OpenOrCreate::PublishSubscribeOpenError(
-                        open @ (Open::IncompatibleTypes
-                        | Open::IncompatibleMessagingPattern
-                        | Open::IncompatibleAttributes
-                        | Open::DoesNotSupportRequestedMinBufferSize
-                        | Open::DoesNotSupportRequestedMinHistorySize
-                        | Open::DoesNotSupportRequestedMinSubscriberBorrowedSamples
-                        | Open::DoesNotSupportRequestedAmountOfPublishers
-                        | Open::DoesNotSupportRequestedAmountOfSubscribers
-                        | Open::DoesNotSupportRequestedAmountOfNodes
-                        | Open::IncompatibleOverflowBehavior),
-                    ) => JoinError::Incompatible {
-                        bus: bus(),
-                        detail: format!("{open:?}"),
-                    },
-                    other => ipc("opening the frame service")(&other),
+            .map_err(|error| match crate::os::service_open_failure(&error) {
+                crate::os::ServiceOpenFailure::NodeLimit => JoinError::BusFull {
+                    bus: bus(),
+                    max_nodes,
+                },
+                crate::os::ServiceOpenFailure::Incompatible(detail) => {
+                    JoinError::Incompatible { bus: bus(), detail }
                 }
+                crate::os::ServiceOpenFailure::Other => ipc("opening the frame service")(&error),
             })?;
 
         let wake_name =

@@ -4,7 +4,7 @@ use std::marker::PhantomData;
 use std::ops::Deref;
 use std::time::{Duration, Instant};
 
-use can_bus::os::wait_readable;
+use can_bus::os::{ServiceOpenFailure, service_open_failure, wait_readable};
 use iceoryx2::port::listener::Listener;
 use iceoryx2::port::notifier::Notifier;
 use iceoryx2::port::publisher::Publisher;
@@ -176,28 +176,13 @@ impl IpcNode {
             .max_nodes(T::MAX_SUBSCRIBERS + T::MAX_PUBLISHERS)
             .enable_safe_overflow(true)
             .open_or_create()
-            .map_err(|error| {
-                use iceoryx2::service::builder::publish_subscribe::{
-                    PublishSubscribeOpenError as Open,
-                    PublishSubscribeOpenOrCreateError as OpenOrCreate,
-                };
-                match error {
-                    OpenOrCreate::PublishSubscribeOpenError(
-                        open @ (Open::IncompatibleTypes
-                        | Open::IncompatibleMessagingPattern
-                        | Open::IncompatibleAttributes
-                        | Open::DoesNotSupportRequestedMinBufferSize
-                        | Open::DoesNotSupportRequestedMinHistorySize
-                        | Open::DoesNotSupportRequestedMinSubscriberBorrowedSamples
-                        | Open::DoesNotSupportRequestedAmountOfPublishers
-                        | Open::DoesNotSupportRequestedAmountOfSubscribers
-                        | Open::DoesNotSupportRequestedAmountOfNodes
-                        | Open::IncompatibleOverflowBehavior),
-                    ) => PortError::Incompatible {
-                        service: service.clone(),
-                        detail: format!("{open:?}"),
-                    },
-                    other => ipc("opening the service", &other),
+            .map_err(|error| match service_open_failure(&error) {
+                ServiceOpenFailure::Incompatible(detail) => PortError::Incompatible {
+                    service: service.clone(),
+                    detail,
+                },
+                ServiceOpenFailure::NodeLimit | ServiceOpenFailure::Other => {
+                    ipc("opening the service", &error)
                 }
             })?;
         let wake_name = ServiceName::new(&format!("{service}/wake"))
