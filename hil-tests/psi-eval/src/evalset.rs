@@ -5,6 +5,7 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use planner::feasibility::{FeasibilityError, FeasibilityEvaluator, FeasibilityQuery};
+use planner::problem::UnloadLocation;
 use world::view::render_crop;
 use world::{Heatmap, RobotConfig, Scene, Side};
 
@@ -143,17 +144,12 @@ pub fn build_eval_set(robot: &RobotConfig, spec: &EvalSpec) -> Result<EvalSet, E
 /// 1 on the candidate cells of (target, side) where the base, commanded to the cell centre facing
 /// the table, collides with nothing; 0 elsewhere.
 pub fn free_cells(scene: &Scene, robot: &RobotConfig, target: [f64; 3], side: Side) -> Heatmap {
+    // The planner's own marking, so the metric sees exactly the cells GROP draws from.
+    let mut location = UnloadLocation::from_heatmap(0, side, target, &Heatmap::zeros());
+    location.mark_free_cells(scene, robot);
     let mut free = Heatmap::zeros();
-    for (r, c) in planner::problem::candidate_cells() {
-        let (x_m, y_m) = world::view::cell_center_world(target[0], side, r, c);
-        let pose = world::BasePose {
-            x_m,
-            y_m,
-            yaw_rad: side.facing_yaw_rad(),
-        };
-        if !world::base_collides(scene, robot, pose) {
-            free.set(r, c, 1.0);
-        }
+    for cell in location.cells.iter().filter(|c| c.free) {
+        free.set(cell.row, cell.col, 1.0);
     }
     free
 }

@@ -290,13 +290,15 @@ mod tests {
     use crate::generate::evaluation_scene;
     use crate::robot::RobotConfig;
 
-    /// Without corners every query that needs a bend goes to the grid search: same answers as
-    /// Theta*, connectivity kept.
+    /// A map over the corner limit keeps no graph; every query that needs a bend then goes to
+    /// the grid search: the same answers as Theta*, connectivity kept.
     #[test]
-    fn empty_corner_graph_falls_back_to_the_grid_search() {
+    fn without_a_corner_graph_the_grid_search_answers() {
         let scene = evaluation_scene(3, 15, 6);
         let mut grid = OccupancyGrid::from_scene(&scene, &RobotConfig::default());
-        grid.graph = CornerGraph::default();
+        assert!(grid.corner_count() > 10);
+        grid.graph = CornerGraph::build_limited(&grid, 10);
+        assert_eq!(grid.corner_count(), 0);
         let from = (scene.robot_start.x_m, scene.robot_start.y_m);
         for to in [(0.0, 7.0), (scene.targets[0].x_m, 6.8), (3.0, 3.0)] {
             let planned = grid.plan(from, to).map(|p| p.points);
@@ -304,22 +306,6 @@ mod tests {
             assert_eq!(planned, reference, "to {to:?}");
         }
         assert!(grid.plan(from, (0.0, 7.0)).is_some());
-    }
-
-    /// A map over the corner limit keeps no graph and still answers every query (Theta*).
-    #[test]
-    fn over_the_corner_limit_queries_still_work() {
-        let scene = evaluation_scene(2, 20, 6);
-        let mut grid = OccupancyGrid::from_scene(&scene, &RobotConfig::default());
-        assert!(grid.corner_count() > 10);
-        grid.graph = CornerGraph::build_limited(&grid, 10);
-        assert_eq!(grid.corner_count(), 0);
-        let from = (scene.robot_start.x_m, scene.robot_start.y_m);
-        let to = (scene.targets[1].x_m, 6.8);
-        assert_eq!(
-            grid.plan(from, to).map(|p| p.points),
-            grid.plan_theta_star(from, to).map(|p| p.points)
-        );
     }
 
     /// Floyd-Warshall's next hops give a chain of mutually visible corners whose length is the
