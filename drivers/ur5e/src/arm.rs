@@ -8,6 +8,38 @@
 //! [`ArmConfig::stale_after`] (default 100 ms) is a lost connection: the skill sends `stopj`
 //! (and the dashboard `stop`) over whatever still works and returns
 //! [`SkillError::ConnectionLost`].
+//!
+//! Two ways to run a skill, one logic:
+//!
+//! - **Blocking** (`move_joints`, `move_linear`, `stop`, `open_gripper`, `close_gripper`): the
+//!   call returns when the skill is done, clocked by the RTDE stream and timed on the arm's own
+//!   monotonic clock. For tools and tests.
+//! - **Non-blocking**, for the cyclic executive: `start_*` sends what has to be sent and
+//!   returns; then once per cycle [`Ur5eArm::update_at`] (never waits for long) and
+//!   [`Ur5eArm::poll`] judge progress. Every timeout (program start, motion, stop, gripper,
+//!   stale state) is measured on the caller's `now`, a monotonic [`Duration`] from the
+//!   executive's clock: wall time on the robot, simulated time in HIL, so a lock-stepped world
+//!   that stops also stops every timeout. Once a motion program is sent, `update_at` + `poll`
+//!   do not allocate. The blocking skills are `start_*` + a loop of `update` + `poll`.
+//!
+//! ```no_run
+//! # use std::time::Duration;
+//! # fn cycle_time() -> Duration { Duration::ZERO }
+//! # let mut arm = ur5e::Ur5eArm::connect(ur5e::ArmConfig::default())?;
+//! let now = cycle_time();
+//! arm.update_at(now)?;
+//! arm.start_move_joints([0.0, -1.57, 1.57, -1.57, -1.57, 0.0], 1.05, 1.4,
+//!     Duration::from_secs(10), now)?;
+//! loop {
+//!     let now = cycle_time(); // next cycle
+//!     arm.update_at(now)?;
+//!     match arm.poll(now)? {
+//!         ur5e::SkillProgress::Done(outcome) => break,
+//!         _ => {} // Running: come back next cycle
+//!     }
+//! }
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
 
 use std::net::{IpAddr, Ipv4Addr, SocketAddr};
 use std::time::{Duration, Instant};
@@ -15,7 +47,7 @@ use std::time::{Duration, Instant};
 use thiserror::Error;
 
 use crate::dashboard::{DashboardClient, DashboardError, RobotMode, SafetyMode};
-use crate::gripper::{GripOutcome, GripperError, RobotiqGripper};
+use crate::gripper::{GripOutcome, GripperError, GripperJob, GripperProgress, RobotiqGripper};
 use crate::pose::TcpPose;
 use crate::rtde::{
     DataPackage, InputRecipe, RtdeClient, RtdeConnectError, RtdeReceiveError, RtdeRequestError,
@@ -62,8 +94,13 @@ pub struct ArmConfig {
     pub gripper_port: Option<u16>,
     /// RTDE output frequency (Hz); 500 on e-Series.
     pub frequency_hz: f64,
-    /// No state for this long = lost connection.
+    /// No state for this long = lost connection (wall time in the blocking calls; the caller's
+    /// clock in [`Ur5eArm::update_at`] and [`Ur5eArm::poll`]).
     pub stale_after: Duration,
+    /// Longest wall time [`Ur5eArm::update_at`] waits for a package when none has arrived yet.
+    /// Zero (default): take what is there and never block the executive's cycle; in lock-step
+    /// HIL the cycle's package is already there when the world's step returns.
+    pub receive_wait: Duration,
     /// Input int register fed every cycle as the controller-side watchdog (24..=47 are the
     /// external-client range).
     pub watchdog_register: u8,
@@ -99,6 +136,7 @@ impl Default for ArmConfig {
             gripper_port: Some(crate::gripper::GRIPPER_PORT),
             frequency_hz: 500.0,
             stale_after: Duration::from_millis(100),
+            receive_wait: Duration::ZERO,
             watchdog_register: 24,
             watchdog_min_hz: 10.0,
             joint_tolerance_rad: 0.002,
@@ -160,6 +198,32 @@ impl ArmState {
     /// Fastest joint (rad/s).
     pub fn max_joint_speed_radps(&self) -> f64 {
         self.qd_radps.iter().fold(0.0_f64, |m, v| m.max(v.abs()))
+    }
+
+    /// Motion may be commanded: robot mode RUNNING, no protective or emergency stop.
+    pub fn ready_for_motion(&self) -> bool {
+        self.robot_mode == RobotMode::Running.code()
+            && !self.protective_stopped()
+            && !self.emergency_stopped()
+    }
+
+    /// Largest joint distance to `q_rad` (rad).
+    pub fn max_joint_error_rad(&self, q_rad: &Joints) -> f64 {
+        self.q_rad
+            .iter()
+            .zip(q_rad)
+            .fold(0.0_f64, |m, (a, b)| m.max((a - b).abs()))
+    }
+
+    /// No program runs and every joint is slower than `settled_speed_radps`.
+    pub fn at_rest(&self, settled_speed_radps: f64) -> bool {
+        !self.program_running() && self.max_joint_speed_radps() < settled_speed_radps
+    }
+
+    /// Controller time as a [`Duration`] (zero if the timestamp is not a finite, non-negative
+    /// number).
+    pub fn controller_time(&self) -> Duration {
+        Duration::try_from_secs_f64(self.timestamp_s).unwrap_or(Duration::ZERO)
     }
 }
 
@@ -257,6 +321,13 @@ pub enum SkillError {
     /// A program from elsewhere keeps running.
     #[error("another program is running on the controller")]
     Busy,
+    /// A skill of this arm is still in progress: poll it to its end, or `start_stop`, which
+    /// replaces any skill.
+    #[error("skill {active} is still in progress")]
+    SkillInProgress {
+        /// The skill in progress.
+        active: &'static str,
+    },
     /// The target is not finite or outside the joint limits.
     #[error("invalid target: {reason}")]
     InvalidTarget {
@@ -280,7 +351,8 @@ pub enum SkillError {
 /// How a finished move ended.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct MoveReport {
-    /// Wall time from sending to done (s).
+    /// Time from sending the program to done (s), on the clock the skill was run on (the
+    /// caller's for `start_*` + `poll`, the arm's own for the blocking calls).
     pub duration_s: f64,
     /// Remaining error at the end (rad for joints, m for linear).
     pub final_error: f64,
@@ -288,9 +360,95 @@ pub struct MoveReport {
     pub cycles: u64,
 }
 
+/// What [`Ur5eArm::start_gripper`] does.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum GripperAction {
+    /// Activate if not active (STA != 3); nothing moves otherwise.
+    Activate,
+    /// Activate if needed, then open fully.
+    Open,
+    /// Activate if needed, then close fully with moderate force.
+    Close,
+}
+
+/// What a finished skill achieved.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum SkillOutcome {
+    /// A `start_move_joints` / `start_move_linear` reached its goal and settled.
+    Moved(MoveReport),
+    /// A `start_stop` brought the arm to rest.
+    Stopped,
+    /// `GripperAction::Activate` finished.
+    GripperActivated,
+    /// `GripperAction::Open` / `Close` finished; [`GripOutcome::ObjectWhileClosing`] = held.
+    Gripper(GripOutcome),
+}
+
+/// Where the skill stands after [`Ur5eArm::poll`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum SkillProgress {
+    /// No skill is in progress.
+    Idle,
+    /// In progress: `update_at` and `poll` again next cycle.
+    Running,
+    /// Finished this cycle; the arm is idle again.
+    Done(SkillOutcome),
+}
+
+/// Longest wait, after a motion timed out and `stopj` was sent, for the arm to come to rest
+/// before the timeout is reported (the blocking skills always waited this long, 2 s).
+const STOP_AFTER_TIMEOUT_WAIT: Duration = Duration::from_secs(2);
+
+#[derive(Debug, Clone, Copy)]
 enum Goal {
     Joints(Joints),
     Pose(TcpPose),
+}
+
+/// The skill in progress, as a state machine advanced by [`Ur5eArm::poll`].
+#[derive(Debug)]
+enum Skill {
+    Idle,
+    Motion {
+        name: &'static str,
+        goal: Goal,
+        timeout: Duration,
+        phase: MotionPhase,
+    },
+    Stop {
+        timeout: Duration,
+        sent_at: Duration,
+    },
+    Gripper(GripperJob),
+}
+
+impl Skill {
+    fn name(&self) -> Option<&'static str> {
+        match self {
+            Skill::Idle => None,
+            Skill::Motion { name, .. } => Some(name),
+            Skill::Stop { .. } => Some("stop"),
+            Skill::Gripper(_) => Some("gripper"),
+        }
+    }
+}
+
+#[derive(Debug)]
+enum MotionPhase {
+    /// Another program still runs; ours is sent once it ends (so the next program seen
+    /// running is ours), or `Busy` after `program_start_timeout`.
+    WaitIdle {
+        program: UrScriptProgram,
+        since: Duration,
+    },
+    /// Sent; judged every cycle.
+    Sent {
+        sent_at: Duration,
+        first_cycle: u64,
+        seen_running: bool,
+    },
+    /// Timed out; `stopj` sent; the timeout is reported once the arm rests.
+    StopAfterTimeout { since: Duration },
 }
 
 /// A connected UR5e with the unload skills.
@@ -306,6 +464,15 @@ pub struct Ur5eArm {
     gripper: Option<RobotiqGripper>,
     state: ArmState,
     cycles: u64,
+    /// The blocking calls' clock.
+    epoch: Instant,
+    /// Caller time of the newest package taken by `update_at`.
+    received_at: Option<Duration>,
+    /// First caller time seen by `update_at`: the staleness reference before any package.
+    clock_ref: Option<Duration>,
+    skill: Skill,
+    /// The first lost-link report: later calls repeat it instead of stopping and logging again.
+    lost: Option<(String, bool)>,
 }
 
 impl core::fmt::Debug for Ur5eArm {
@@ -394,6 +561,11 @@ impl Ur5eArm {
                 skipped: 0,
             },
             cycles: 0,
+            epoch: Instant::now(),
+            received_at: None,
+            clock_ref: None,
+            skill: Skill::Idle,
+            lost: None,
         };
         arm.decode_state();
         Ok(arm)
@@ -407,6 +579,18 @@ impl Ur5eArm {
     /// The state of the last cycle.
     pub fn state(&self) -> &ArmState {
         &self.state
+    }
+
+    /// The caller time (`now` of [`Self::update_at`]) at which the newest state arrived; `None`
+    /// before `update_at` took a package, and after a blocking call (which runs on its own
+    /// clock and restarts this bookkeeping).
+    pub fn state_received_at(&self) -> Option<Duration> {
+        self.received_at
+    }
+
+    /// The skill in progress, if any.
+    pub fn active_skill(&self) -> Option<&'static str> {
+        self.skill.name()
     }
 
     /// The dashboard connection (recovery, power, modes).
@@ -439,8 +623,8 @@ impl Ur5eArm {
         };
     }
 
-    /// One cycle: waits for the newest state (at most [`ArmConfig::stale_after`]) and feeds the
-    /// controller-side watchdog. Any failure here means the link is gone.
+    /// One cycle: waits for the newest state (at most [`ArmConfig::stale_after`], wall time)
+    /// and feeds the controller-side watchdog. Any failure here means the link is gone.
     pub fn update(&mut self) -> Result<&ArmState, SkillError> {
         if let Err(e) = self
             .rtde
@@ -448,8 +632,54 @@ impl Ur5eArm {
         {
             return Err(self.connection_lost(e.to_string()));
         }
+        self.take_package();
+        // This call runs on the arm's own clock: caller-clock bookkeeping starts afresh.
+        self.received_at = None;
+        self.clock_ref = None;
+        self.feed_watchdog()?;
+        Ok(&self.state)
+    }
+
+    /// One cycle of a cyclic executive at caller time `now`: takes the newest package that has
+    /// arrived (waiting at most [`ArmConfig::receive_wait`], wall time, if none has) and feeds
+    /// the controller-side watchdog. With no new package the previous state stays; only when
+    /// no package arrived for longer than [`ArmConfig::stale_after`] on the caller's clock is
+    /// the link lost (`stopj` attempted, [`SkillError::ConnectionLost`]). A closed or reset
+    /// socket is lost at once. Does not allocate unless it fails.
+    pub fn update_at(&mut self, now: Duration) -> Result<&ArmState, SkillError> {
+        match self
+            .rtde
+            .receive_newest(&mut self.package, self.cfg.receive_wait)
+        {
+            Ok(true) => {
+                self.take_package();
+                self.received_at = Some(now);
+            }
+            Ok(false) => {}
+            Err(e) => return Err(self.connection_lost(e.to_string())),
+        }
+        let reference = match self.received_at {
+            Some(t) => t,
+            None => *self.clock_ref.get_or_insert(now),
+        };
+        let silent = now.saturating_sub(reference);
+        if silent > self.cfg.stale_after {
+            return Err(self.connection_lost(format!(
+                "no RTDE state for {silent:?} (caller clock), limit {:?}",
+                self.cfg.stale_after
+            )));
+        }
+        self.feed_watchdog()?;
+        Ok(&self.state)
+    }
+
+    fn take_package(&mut self) {
         self.decode_state();
         self.cycles += 1;
+    }
+
+    /// Writes the next heartbeat count to the watchdog register.
+    fn feed_watchdog(&mut self) -> Result<(), SkillError> {
         self.heartbeat_count = self.heartbeat_count.wrapping_add(1);
         self.heartbeat_value[0] = RtdeValue::Int32(self.heartbeat_count);
         if let Err(e) = self
@@ -462,11 +692,19 @@ impl Ur5eArm {
             };
             return Err(self.connection_lost(cause));
         }
-        Ok(&self.state)
+        Ok(())
     }
 
-    /// The link is gone: try every other channel to stop the arm, then report.
+    /// The link is gone: abandon the skill, try every other channel to stop the arm, then
+    /// report. Once: later failures repeat the first report.
     fn connection_lost(&mut self, cause: String) -> SkillError {
+        self.skill = Skill::Idle;
+        if let Some((cause, stop_sent)) = &self.lost {
+            return SkillError::ConnectionLost {
+                cause: cause.clone(),
+                stop_sent: *stop_sent,
+            };
+        }
         log::error!("UR5e link lost: {cause}; stopping the arm");
         let stop = UrScriptProgram::new(
             "grop_stop",
@@ -476,10 +714,31 @@ impl Ur5eArm {
         );
         let by_script = self.script.send(&stop).is_ok();
         let by_dashboard = self.dashboard.stop().is_ok();
-        SkillError::ConnectionLost {
-            cause,
-            stop_sent: by_script || by_dashboard,
+        let stop_sent = by_script || by_dashboard;
+        self.lost = Some((cause.clone(), stop_sent));
+        SkillError::ConnectionLost { cause, stop_sent }
+    }
+
+    /// Sends a program; a socket failure is a lost link.
+    fn send_program(&mut self, program: &UrScriptProgram) -> Result<(), SkillError> {
+        match self.script.send(program) {
+            Ok(()) => Ok(()),
+            Err(e @ (ScriptError::Io { .. } | ScriptError::Closed { .. })) => {
+                Err(self.connection_lost(e.to_string()))
+            }
+            Err(other) => Err(other.into()),
         }
+    }
+
+    fn send_stopj(&mut self, decel_radps2: f64) -> Result<(), SkillError> {
+        let program =
+            UrScriptProgram::new("grop_stop", vec![ScriptCommand::StopJ { decel_radps2 }]);
+        self.send_program(&program)
+    }
+
+    /// The blocking calls' clock: time since connect.
+    fn own_now(&self) -> Duration {
+        self.epoch.elapsed()
     }
 
     fn check_safety(&self) -> Result<(), SkillError> {
@@ -538,86 +797,59 @@ impl Ur5eArm {
         settled && close
     }
 
-    /// Waits (bounded) until no program runs, so the next one is ours when seen running.
-    fn wait_idle(&mut self) -> Result<(), SkillError> {
-        let started = Instant::now();
-        loop {
-            self.update()?;
-            self.check_safety()?;
-            if !self.state.program_running() {
-                return Ok(());
-            }
-            if started.elapsed() > self.cfg.program_start_timeout {
-                return Err(SkillError::Busy);
-            }
+    fn ensure_no_skill(&self) -> Result<(), SkillError> {
+        match self.skill.name() {
+            Some(active) => Err(SkillError::SkillInProgress { active }),
+            None => Ok(()),
         }
     }
 
-    fn run_motion(
+    /// Starts a motion: checks the state of the last cycle, builds the program (this may
+    /// allocate) and sends it now if no program runs, or once the running one ends.
+    fn start_motion(
         &mut self,
-        skill: &'static str,
+        name: &'static str,
         motion: ScriptCommand,
         goal: Goal,
         timeout: Duration,
-    ) -> Result<MoveReport, SkillError> {
-        self.wait_idle()?;
+        now: Duration,
+    ) -> Result<(), SkillError> {
+        self.ensure_no_skill()?;
+        self.check_safety()?;
         let program = self.motion_program(motion);
-        if let Err(e) = self.script.send(&program) {
-            return Err(match e {
-                ScriptError::Io { .. } | ScriptError::Closed { .. } => {
-                    self.connection_lost(e.to_string())
-                }
-                other => other.into(),
-            });
-        }
-        let sent = Instant::now();
-        let first_cycle = self.cycles;
-        let mut seen_running = false;
-        loop {
-            self.update()?;
-            self.check_safety()?;
-            let running = self.state.program_running();
-            seen_running |= running;
-            let elapsed = sent.elapsed();
-            let report = |arm: &Self| MoveReport {
-                duration_s: elapsed.as_secs_f64(),
-                final_error: arm.goal_error(&goal),
-                cycles: arm.cycles - first_cycle,
-            };
-            if seen_running && !running {
-                if self.at_goal(&goal) {
-                    return Ok(report(self));
-                }
-                return Err(SkillError::StoppedShort {
-                    skill,
-                    remaining: self.goal_error(&goal),
-                });
+        let phase = if self.state.program_running() {
+            MotionPhase::WaitIdle {
+                program,
+                since: now,
             }
-            if !seen_running && elapsed > self.cfg.program_start_timeout {
-                // A move to where the arm already is may run between two samples.
-                if self.at_goal(&goal) {
-                    return Ok(report(self));
-                }
-                return Err(SkillError::ProgramNotStarted {
-                    skill,
-                    waited: elapsed,
-                });
+        } else {
+            self.send_program(&program)?;
+            MotionPhase::Sent {
+                sent_at: now,
+                first_cycle: self.cycles,
+                seen_running: false,
             }
-            if elapsed > timeout {
-                self.stop(self.cfg.stop_decel_radps2, Duration::from_secs(2))?;
-                return Err(SkillError::Timeout { skill, timeout });
-            }
-        }
+        };
+        self.skill = Skill::Motion {
+            name,
+            goal,
+            timeout,
+            phase,
+        };
+        Ok(())
     }
 
-    /// `movej` to `q_rad` and waits until the arm rests there.
-    pub fn move_joints(
+    /// Starts `movej` to `q_rad` (speed rad/s, accel rad/s^2); done when the arm rests there.
+    /// The motion must end within `timeout` of sending, on the caller's clock; `now` is the
+    /// caller's time. Progress: [`Self::poll`] every cycle after [`Self::update_at`].
+    pub fn start_move_joints(
         &mut self,
         q_rad: Joints,
         speed_radps: f64,
         accel_radps2: f64,
         timeout: Duration,
-    ) -> Result<MoveReport, SkillError> {
+        now: Duration,
+    ) -> Result<(), SkillError> {
         if q_rad.iter().any(|q| !q.is_finite()) {
             return Err(SkillError::InvalidTarget {
                 reason: "joint target not finite",
@@ -638,17 +870,18 @@ impl Ur5eArm {
             accel_radps2,
             speed_radps,
         };
-        self.run_motion("move_joints", motion, Goal::Joints(q_rad), timeout)
+        self.start_motion("move_joints", motion, Goal::Joints(q_rad), timeout, now)
     }
 
-    /// `movel` to `pose` (straight tool line) and waits until the arm rests there.
-    pub fn move_linear(
+    /// Starts `movel` to `pose` (straight tool line, m/s, m/s^2); as [`Self::start_move_joints`].
+    pub fn start_move_linear(
         &mut self,
         pose: TcpPose,
         speed_mps: f64,
         accel_mps2: f64,
         timeout: Duration,
-    ) -> Result<MoveReport, SkillError> {
+        now: Duration,
+    ) -> Result<(), SkillError> {
         if pose.as_array().iter().any(|x| !x.is_finite()) {
             return Err(SkillError::InvalidTarget {
                 reason: "pose not finite",
@@ -659,50 +892,277 @@ impl Ur5eArm {
             accel_mps2,
             speed_mps,
         };
-        self.run_motion("move_linear", motion, Goal::Pose(pose), timeout)
+        self.start_motion("move_linear", motion, Goal::Pose(pose), timeout, now)
+    }
+
+    /// Sends `stopj` (replacing the running program) and replaces any skill in progress; done
+    /// when the arm rests, [`SkillError::Timeout`] if not within `timeout` (caller's clock).
+    pub fn start_stop(
+        &mut self,
+        decel_radps2: f64,
+        timeout: Duration,
+        now: Duration,
+    ) -> Result<(), SkillError> {
+        self.skill = Skill::Idle;
+        self.send_stopj(decel_radps2)?;
+        self.skill = Skill::Stop {
+            timeout,
+            sent_at: now,
+        };
+        Ok(())
+    }
+
+    /// Starts a gripper activation, opening or closing: one request/reply on the URCap socket
+    /// per [`Self::poll`], each phase (activation, motion) within `timeout` on the caller's clock.
+    pub fn start_gripper(
+        &mut self,
+        action: GripperAction,
+        timeout: Duration,
+        now: Duration,
+    ) -> Result<(), SkillError> {
+        self.ensure_no_skill()?;
+        if self.gripper.is_none() {
+            return Err(SkillError::NoGripper);
+        }
+        let job = match action {
+            GripperAction::Activate => GripperJob::activate(timeout, now),
+            GripperAction::Open => GripperJob::activate_and_move_to(0, 255, 128, timeout, now),
+            GripperAction::Close => GripperJob::activate_and_move_to(255, 255, 128, timeout, now),
+        };
+        self.skill = Skill::Gripper(job);
+        Ok(())
+    }
+
+    /// Judges the skill in progress on the state of the last [`Self::update_at`], at caller
+    /// time `now`: `Running`, `Done` (the arm is idle again), or the error that ended it (the
+    /// arm is idle again; on a motion timeout `stopj` was sent and the arm came to rest first).
+    /// Checks are those of the blocking skills: protective stop -> `ProtectiveStop`; program
+    /// seen running then ended: at the goal and settled -> `Done`, else `StoppedShort`; never
+    /// seen running within `program_start_timeout` and not at the goal -> `ProgramNotStarted`;
+    /// past the timeout -> `stopj`, then `Timeout`. No state for `stale_after` -> `ConnectionLost`.
+    /// Does not allocate while a motion runs.
+    pub fn poll(&mut self, now: Duration) -> Result<SkillProgress, SkillError> {
+        let skill = std::mem::replace(&mut self.skill, Skill::Idle);
+        if matches!(skill, Skill::Idle) {
+            return Ok(SkillProgress::Idle);
+        }
+        if let Some(t) = self.received_at {
+            let silent = now.saturating_sub(t);
+            if silent > self.cfg.stale_after {
+                return Err(self.connection_lost(format!(
+                    "no RTDE state for {silent:?} (caller clock), limit {:?}",
+                    self.cfg.stale_after
+                )));
+            }
+        }
+        // On error the skill stays Idle: it has ended.
+        let (next, progress) = self.advance(skill, now)?;
+        self.skill = next;
+        Ok(progress)
+    }
+
+    fn advance(
+        &mut self,
+        skill: Skill,
+        now: Duration,
+    ) -> Result<(Skill, SkillProgress), SkillError> {
+        const RUNNING: SkillProgress = SkillProgress::Running;
+        match skill {
+            Skill::Idle => Ok((Skill::Idle, SkillProgress::Idle)),
+            Skill::Stop { timeout, sent_at } => {
+                if self.state.at_rest(self.cfg.settled_speed_radps) {
+                    return Ok((Skill::Idle, SkillProgress::Done(SkillOutcome::Stopped)));
+                }
+                if now.saturating_sub(sent_at) > timeout {
+                    return Err(SkillError::Timeout {
+                        skill: "stop",
+                        timeout,
+                    });
+                }
+                Ok((Skill::Stop { timeout, sent_at }, RUNNING))
+            }
+            Skill::Gripper(mut job) => {
+                let Some(g) = self.gripper.as_mut() else {
+                    return Err(SkillError::NoGripper);
+                };
+                Ok(match job.poll(g, now)? {
+                    GripperProgress::Pending => (Skill::Gripper(job), RUNNING),
+                    GripperProgress::Activated => (
+                        Skill::Idle,
+                        SkillProgress::Done(SkillOutcome::GripperActivated),
+                    ),
+                    GripperProgress::Moved(o) => {
+                        (Skill::Idle, SkillProgress::Done(SkillOutcome::Gripper(o)))
+                    }
+                })
+            }
+            Skill::Motion {
+                name,
+                goal,
+                timeout,
+                phase,
+            } => {
+                let phase = match phase {
+                    MotionPhase::WaitIdle { program, since } => {
+                        self.check_safety()?;
+                        if !self.state.program_running() {
+                            self.send_program(&program)?;
+                            MotionPhase::Sent {
+                                sent_at: now,
+                                first_cycle: self.cycles,
+                                seen_running: false,
+                            }
+                        } else if now.saturating_sub(since) > self.cfg.program_start_timeout {
+                            return Err(SkillError::Busy);
+                        } else {
+                            MotionPhase::WaitIdle { program, since }
+                        }
+                    }
+                    MotionPhase::Sent {
+                        sent_at,
+                        first_cycle,
+                        seen_running,
+                    } => {
+                        self.check_safety()?;
+                        let running = self.state.program_running();
+                        let seen_running = seen_running || running;
+                        let elapsed = now.saturating_sub(sent_at);
+                        let report = MoveReport {
+                            duration_s: elapsed.as_secs_f64(),
+                            final_error: self.goal_error(&goal),
+                            cycles: self.cycles - first_cycle,
+                        };
+                        if seen_running && !running {
+                            if self.at_goal(&goal) {
+                                let done = SkillProgress::Done(SkillOutcome::Moved(report));
+                                return Ok((Skill::Idle, done));
+                            }
+                            return Err(SkillError::StoppedShort {
+                                skill: name,
+                                remaining: report.final_error,
+                            });
+                        }
+                        if !seen_running && elapsed > self.cfg.program_start_timeout {
+                            // A move to where the arm already is may run between two samples.
+                            if self.at_goal(&goal) {
+                                let done = SkillProgress::Done(SkillOutcome::Moved(report));
+                                return Ok((Skill::Idle, done));
+                            }
+                            return Err(SkillError::ProgramNotStarted {
+                                skill: name,
+                                waited: elapsed,
+                            });
+                        }
+                        if elapsed > timeout {
+                            self.send_stopj(self.cfg.stop_decel_radps2)?;
+                            MotionPhase::StopAfterTimeout { since: now }
+                        } else {
+                            MotionPhase::Sent {
+                                sent_at,
+                                first_cycle,
+                                seen_running,
+                            }
+                        }
+                    }
+                    MotionPhase::StopAfterTimeout { since } => {
+                        if self.state.at_rest(self.cfg.settled_speed_radps)
+                            || now.saturating_sub(since) > STOP_AFTER_TIMEOUT_WAIT
+                        {
+                            return Err(SkillError::Timeout {
+                                skill: name,
+                                timeout,
+                            });
+                        }
+                        MotionPhase::StopAfterTimeout { since }
+                    }
+                };
+                Ok((
+                    Skill::Motion {
+                        name,
+                        goal,
+                        timeout,
+                        phase,
+                    },
+                    RUNNING,
+                ))
+            }
+        }
+    }
+
+    /// Runs the skill just started to its end on the arm's own clock, one RTDE cycle at a time.
+    fn finish_blocking(&mut self) -> Result<SkillOutcome, SkillError> {
+        loop {
+            self.update()?;
+            match self.poll(self.own_now())? {
+                SkillProgress::Running => {}
+                SkillProgress::Done(outcome) => return Ok(outcome),
+                SkillProgress::Idle => {
+                    unreachable!("finish_blocking is only called with a skill in progress")
+                }
+            }
+        }
+    }
+
+    /// `movej` to `q_rad` and waits until the arm rests there.
+    pub fn move_joints(
+        &mut self,
+        q_rad: Joints,
+        speed_radps: f64,
+        accel_radps2: f64,
+        timeout: Duration,
+    ) -> Result<MoveReport, SkillError> {
+        self.update()?;
+        self.start_move_joints(q_rad, speed_radps, accel_radps2, timeout, self.own_now())?;
+        self.finish_move()
+    }
+
+    /// `movel` to `pose` (straight tool line) and waits until the arm rests there.
+    pub fn move_linear(
+        &mut self,
+        pose: TcpPose,
+        speed_mps: f64,
+        accel_mps2: f64,
+        timeout: Duration,
+    ) -> Result<MoveReport, SkillError> {
+        self.update()?;
+        self.start_move_linear(pose, speed_mps, accel_mps2, timeout, self.own_now())?;
+        self.finish_move()
+    }
+
+    fn finish_move(&mut self) -> Result<MoveReport, SkillError> {
+        match self.finish_blocking()? {
+            SkillOutcome::Moved(report) => Ok(report),
+            other => unreachable!("a motion skill ended in {other:?}"),
+        }
     }
 
     /// Stops any motion (`stopj`, replacing the running program) and waits until the arm rests.
     pub fn stop(&mut self, decel_radps2: f64, timeout: Duration) -> Result<(), SkillError> {
-        let program =
-            UrScriptProgram::new("grop_stop", vec![ScriptCommand::StopJ { decel_radps2 }]);
-        if let Err(e) = self.script.send(&program) {
-            return Err(match e {
-                ScriptError::Io { .. } | ScriptError::Closed { .. } => {
-                    self.connection_lost(e.to_string())
-                }
-                other => other.into(),
-            });
-        }
-        let sent = Instant::now();
-        loop {
-            self.update()?;
-            if self.state.max_joint_speed_radps() < self.cfg.settled_speed_radps
-                && !self.state.program_running()
-            {
-                return Ok(());
-            }
-            if sent.elapsed() > timeout {
-                return Err(SkillError::Timeout {
-                    skill: "stop",
-                    timeout,
-                });
-            }
+        self.start_stop(decel_radps2, timeout, self.own_now())?;
+        self.finish_blocking().map(|_| ())
+    }
+
+    fn grip_blocking(
+        &mut self,
+        action: GripperAction,
+        timeout: Duration,
+    ) -> Result<GripOutcome, SkillError> {
+        self.start_gripper(action, timeout, self.own_now())?;
+        match self.finish_blocking()? {
+            SkillOutcome::Gripper(outcome) => Ok(outcome),
+            other => unreachable!("a gripper move ended in {other:?}"),
         }
     }
 
-    /// Opens the gripper.
+    /// Opens the gripper (activating it first if needed).
     pub fn open_gripper(&mut self, timeout: Duration) -> Result<GripOutcome, SkillError> {
-        let g = self.gripper.as_mut().ok_or(SkillError::NoGripper)?;
-        g.activate(timeout)?;
-        Ok(g.open(timeout)?)
+        self.grip_blocking(GripperAction::Open, timeout)
     }
 
-    /// Closes the gripper; [`GripOutcome::ObjectWhileClosing`] means an object is held.
+    /// Closes the gripper (activating it first if needed); [`GripOutcome::ObjectWhileClosing`]
+    /// means an object is held.
     pub fn close_gripper(&mut self, timeout: Duration) -> Result<GripOutcome, SkillError> {
-        let g = self.gripper.as_mut().ok_or(SkillError::NoGripper)?;
-        g.activate(timeout)?;
-        Ok(g.close(timeout)?)
+        self.grip_blocking(GripperAction::Close, timeout)
     }
 
     /// After a protective stop: `unlock protective stop` and wait until the robot runs again.

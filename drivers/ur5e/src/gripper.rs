@@ -141,15 +141,26 @@ impl RobotiqGripper {
         })
     }
 
-    fn exchange(&mut self, command: &str) -> Result<String, GripperError> {
+    /// One request/reply round trip. The request line is built on the stack and the reply read
+    /// into a reused buffer, so a cycle's status poll does not touch the heap (errors may).
+    fn exchange(&mut self, command: std::fmt::Arguments<'_>) -> Result<&str, GripperError> {
         let addr = self.addr;
+        let mut line = [0u8; 128];
+        let len = {
+            let mut cursor = io::Cursor::new(&mut line[..]);
+            cursor
+                .write_fmt(format_args!("{command}\n"))
+                .map_err(|source| GripperError::Io { addr, source })?;
+            // At most 128: the cursor's buffer length.
+            cursor.position() as usize
+        };
         self.writer
-            .write_all(format!("{command}\n").as_bytes())
+            .write_all(&line[..len])
             .map_err(|source| GripperError::Io { addr, source })?;
         self.line.clear();
         match (&mut self.reader).take(4096).read_line(&mut self.line) {
             Ok(0) => Err(GripperError::Closed { addr }),
-            Ok(_) => Ok(self.line.trim().to_string()),
+            Ok(_) => Ok(self.line.trim()),
             Err(e)
                 if matches!(
                     e.kind(),
@@ -158,7 +169,7 @@ impl RobotiqGripper {
             {
                 Err(GripperError::Timeout {
                     addr,
-                    command: command.into(),
+                    command: command.to_string(),
                 })
             }
             Err(source) => Err(GripperError::Io { addr, source }),
@@ -171,23 +182,32 @@ impl RobotiqGripper {
         for (name, value) in vars {
             command.push_str(&format!(" {name} {value}"));
         }
-        let reply = self.exchange(&command)?;
+        let reply = self.exchange(format_args!("{command}"))?;
         if reply == "ack" {
             Ok(())
         } else {
+            let reply = reply.to_string();
             Err(GripperError::UnexpectedReply { command, reply })
         }
     }
 
     /// `GET` one variable.
     pub fn get(&mut self, var: &str) -> Result<u8, GripperError> {
-        let command = format!("GET {var}");
-        let reply = self.exchange(&command)?;
+        let reply = self.exchange(format_args!("GET {var}"))?;
         let value = reply
             .split_once(' ')
             .filter(|(name, _)| *name == var)
             .and_then(|(_, v)| v.trim().parse::<u8>().ok());
-        value.ok_or(GripperError::UnexpectedReply { command, reply })
+        match value {
+            Some(v) => Ok(v),
+            None => {
+                let reply = reply.to_string();
+                Err(GripperError::UnexpectedReply {
+                    command: format!("GET {var}"),
+                    reply,
+                })
+            }
+        }
     }
 
     /// Reads STA, OBJ, POS and FLT.
@@ -200,31 +220,26 @@ impl RobotiqGripper {
         })
     }
 
+    /// Runs `job` to its end, one request per poll, pausing between status polls: the blocking
+    /// form of [`GripperJob`], timed on the local monotonic clock.
+    fn run_blocking(&mut self, mut job: GripperJob) -> Result<GripperProgress, GripperError> {
+        let t0 = Instant::now();
+        loop {
+            match job.poll(self, t0.elapsed())? {
+                GripperProgress::Pending => {
+                    if job.is_waiting() {
+                        std::thread::sleep(self.poll_period);
+                    }
+                }
+                done => return Ok(done),
+            }
+        }
+    }
+
     /// Activates the gripper if it is not active yet and waits for STA = 3.
     pub fn activate(&mut self, timeout: Duration) -> Result<(), GripperError> {
-        if self.get("STA")? == 3 {
-            return Ok(());
-        }
-        // A reset (ACT 0) first clears faults, as the URCap does on activation.
-        self.set(&[("ACT", 0)])?;
-        self.set(&[("ACT", 1)])?;
-        let deadline = Instant::now() + timeout;
-        loop {
-            let status = self.status()?;
-            if status.fault != 0 {
-                return Err(GripperError::Fault { code: status.fault });
-            }
-            if status.activation == 3 {
-                return Ok(());
-            }
-            if Instant::now() >= deadline {
-                return Err(GripperError::NotDone {
-                    what: "activate",
-                    timeout,
-                });
-            }
-            std::thread::sleep(self.poll_period);
-        }
+        self.run_blocking(GripperJob::activate(timeout, Duration::ZERO))
+            .map(|_| ())
     }
 
     /// Moves the fingers to `position` (0 open .. 255 closed) and waits until they stop.
@@ -235,44 +250,13 @@ impl RobotiqGripper {
         force: u8,
         timeout: Duration,
     ) -> Result<GripOutcome, GripperError> {
-        self.set(&[
-            ("POS", position),
-            ("SPE", speed),
-            ("FOR", force),
-            ("GTO", 1),
-        ])?;
-        let deadline = Instant::now() + timeout;
-        // The request must be echoed (PRE) before OBJ refers to this motion, not the last one.
-        loop {
-            if self.get("PRE")? == position {
-                break;
+        let job = GripperJob::move_to(position, speed, force, timeout, Duration::ZERO);
+        match self.run_blocking(job)? {
+            GripperProgress::Moved(outcome) => Ok(outcome),
+            // A move job ends only in Moved or an error.
+            GripperProgress::Pending | GripperProgress::Activated => {
+                unreachable!("a gripper move job ended without a move outcome")
             }
-            if Instant::now() >= deadline {
-                return Err(GripperError::NotDone {
-                    what: "accept the request",
-                    timeout,
-                });
-            }
-            std::thread::sleep(self.poll_period);
-        }
-        loop {
-            let status = self.status()?;
-            if status.fault != 0 {
-                return Err(GripperError::Fault { code: status.fault });
-            }
-            match status.object {
-                1 => return Ok(GripOutcome::ObjectWhileOpening),
-                2 => return Ok(GripOutcome::ObjectWhileClosing),
-                3 => return Ok(GripOutcome::ReachedPosition),
-                _ => {}
-            }
-            if Instant::now() >= deadline {
-                return Err(GripperError::NotDone {
-                    what: "finish moving",
-                    timeout,
-                });
-            }
-            std::thread::sleep(self.poll_period);
         }
     }
 
@@ -284,5 +268,207 @@ impl RobotiqGripper {
     /// Closes fully with moderate force; [`GripOutcome::ObjectWhileClosing`] means it holds something.
     pub fn close(&mut self, timeout: Duration) -> Result<GripOutcome, GripperError> {
         self.move_to(255, 255, 128, timeout)
+    }
+}
+
+/// Where a [`GripperJob`] stands after a poll.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum GripperProgress {
+    /// Not done; poll again next cycle.
+    Pending,
+    /// An activation-only job finished: STA = 3.
+    Activated,
+    /// A move finished.
+    Moved(GripOutcome),
+}
+
+/// One request the job sends next.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum GripperStep {
+    /// GET STA: already active?
+    CheckActive,
+    /// SET ACT 0 (a reset clears faults, as the URCap does on activation).
+    Reset,
+    /// SET ACT 1.
+    Activate,
+    /// GET FLT, then GET STA, until STA = 3.
+    WaitActiveFault,
+    WaitActiveSta,
+    /// SET POS SPE FOR GTO.
+    Command,
+    /// GET PRE until it echoes the request, so OBJ refers to this motion, not the last one.
+    WaitEcho,
+    /// GET FLT, then GET OBJ, until OBJ != 0.
+    WaitDoneFault,
+    WaitDoneObj,
+}
+
+/// A gripper activation and/or move as a state machine that sends **one** request per
+/// [`GripperJob::poll`], with every timeout measured on the caller's clock (`now`, a monotonic
+/// time from the caller: wall time on the robot, simulated time in HIL). This is what lets a
+/// cyclic executive drive the gripper without blocking a cycle, and lets a stopped simulated
+/// clock stop its timeouts too. The blocking [`RobotiqGripper::activate`] and
+/// [`RobotiqGripper::move_to`] run the same machine.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct GripperJob {
+    /// POS, SPE, FOR of the move; `None` for activation only.
+    target: Option<(u8, u8, u8)>,
+    step: GripperStep,
+    timeout: Duration,
+    /// When the current phase (activation, or motion) began, on the caller's clock.
+    phase_started: Duration,
+}
+
+impl GripperJob {
+    /// Activates if needed (STA != 3), within `timeout` from `now`.
+    pub fn activate(timeout: Duration, now: Duration) -> Self {
+        Self {
+            target: None,
+            step: GripperStep::CheckActive,
+            timeout,
+            phase_started: now,
+        }
+    }
+
+    /// Moves without checking activation; the move must finish within `timeout` from `now`.
+    pub fn move_to(position: u8, speed: u8, force: u8, timeout: Duration, now: Duration) -> Self {
+        Self {
+            target: Some((position, speed, force)),
+            step: GripperStep::Command,
+            timeout,
+            phase_started: now,
+        }
+    }
+
+    /// Activates if needed (within `timeout`), then moves (within `timeout` from the command).
+    pub fn activate_and_move_to(
+        position: u8,
+        speed: u8,
+        force: u8,
+        timeout: Duration,
+        now: Duration,
+    ) -> Self {
+        Self {
+            target: Some((position, speed, force)),
+            step: GripperStep::CheckActive,
+            timeout,
+            phase_started: now,
+        }
+    }
+
+    /// True while the job only polls status (worth pausing between polls when blocking).
+    pub fn is_waiting(&self) -> bool {
+        matches!(
+            self.step,
+            GripperStep::WaitActiveFault
+                | GripperStep::WaitActiveSta
+                | GripperStep::WaitEcho
+                | GripperStep::WaitDoneFault
+                | GripperStep::WaitDoneObj
+        )
+    }
+
+    fn expired(&self, now: Duration) -> bool {
+        now.saturating_sub(self.phase_started) >= self.timeout
+    }
+
+    /// After activation: the move, or done.
+    fn activated(&mut self, now: Duration) -> GripperProgress {
+        if self.target.is_some() {
+            self.step = GripperStep::Command;
+            self.phase_started = now;
+            GripperProgress::Pending
+        } else {
+            GripperProgress::Activated
+        }
+    }
+
+    /// Sends this cycle's one request and advances. An error ends the job.
+    pub fn poll(
+        &mut self,
+        g: &mut RobotiqGripper,
+        now: Duration,
+    ) -> Result<GripperProgress, GripperError> {
+        let timeout = self.timeout;
+        match self.step {
+            GripperStep::CheckActive => {
+                if g.get("STA")? == 3 {
+                    return Ok(self.activated(now));
+                }
+                self.step = GripperStep::Reset;
+            }
+            GripperStep::Reset => {
+                g.set(&[("ACT", 0)])?;
+                self.step = GripperStep::Activate;
+            }
+            GripperStep::Activate => {
+                g.set(&[("ACT", 1)])?;
+                self.step = GripperStep::WaitActiveFault;
+            }
+            GripperStep::WaitActiveFault => {
+                let fault = g.get("FLT")?;
+                if fault != 0 {
+                    return Err(GripperError::Fault { code: fault });
+                }
+                self.step = GripperStep::WaitActiveSta;
+            }
+            GripperStep::WaitActiveSta => {
+                if g.get("STA")? == 3 {
+                    return Ok(self.activated(now));
+                }
+                if self.expired(now) {
+                    return Err(GripperError::NotDone {
+                        what: "activate",
+                        timeout,
+                    });
+                }
+                self.step = GripperStep::WaitActiveFault;
+            }
+            GripperStep::Command => {
+                let (position, speed, force) = self.target.unwrap_or((0, 0, 0));
+                g.set(&[
+                    ("POS", position),
+                    ("SPE", speed),
+                    ("FOR", force),
+                    ("GTO", 1),
+                ])?;
+                self.phase_started = now;
+                self.step = GripperStep::WaitEcho;
+            }
+            GripperStep::WaitEcho => {
+                let position = self.target.map_or(0, |t| t.0);
+                if g.get("PRE")? == position {
+                    self.step = GripperStep::WaitDoneFault;
+                } else if self.expired(now) {
+                    return Err(GripperError::NotDone {
+                        what: "accept the request",
+                        timeout,
+                    });
+                }
+            }
+            GripperStep::WaitDoneFault => {
+                let fault = g.get("FLT")?;
+                if fault != 0 {
+                    return Err(GripperError::Fault { code: fault });
+                }
+                self.step = GripperStep::WaitDoneObj;
+            }
+            GripperStep::WaitDoneObj => {
+                match g.get("OBJ")? {
+                    1 => return Ok(GripperProgress::Moved(GripOutcome::ObjectWhileOpening)),
+                    2 => return Ok(GripperProgress::Moved(GripOutcome::ObjectWhileClosing)),
+                    3 => return Ok(GripperProgress::Moved(GripOutcome::ReachedPosition)),
+                    _ => {}
+                }
+                if self.expired(now) {
+                    return Err(GripperError::NotDone {
+                        what: "finish moving",
+                        timeout,
+                    });
+                }
+                self.step = GripperStep::WaitDoneFault;
+            }
+        }
+        Ok(GripperProgress::Pending)
     }
 }

@@ -27,6 +27,9 @@ pub mod pose;
 pub mod rtde;
 pub mod script;
 
-pub use arm::{ArmConfig, ArmConnectError, ArmState, Joints, MoveReport, SkillError, Ur5eArm};
+pub use arm::{
+    ArmConfig, ArmConnectError, ArmState, GripperAction, Joints, MoveReport, SkillError,
+    SkillOutcome, SkillProgress, Ur5eArm,
+};
 pub use gripper::GripOutcome;
 pub use pose::TcpPose;

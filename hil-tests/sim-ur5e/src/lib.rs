@@ -15,12 +15,27 @@
 //! sim.trigger_protective_stop("test");
 //! # Ok::<(), std::io::Error>(())
 //! ```
+//!
+//! In a closed-loop HIL world that owns a simulated clock, start it with
+//! [`Stepping::External`] and advance it one control period per [`Ur5eSim::step`]: when `step`
+//! returns, every started RTDE client already has this cycle's data package in its socket, and
+//! what a client sent before the call and the kernel has delivered was applied first (module
+//! [`stepping`], which also names the known gap under load):
+//!
+//! ```no_run
+//! use sim_ur5e::{SimConfig, Stepping, Ur5eSim};
+//! let sim = Ur5eSim::start(SimConfig { stepping: Stepping::External, ..SimConfig::ephemeral() })?;
+//! let report = sim.step()?; // one 2 ms cycle, at whatever speed the world runs
+//! assert_eq!(report.cycle, 1);
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
 
 pub mod fields;
 pub mod gripper;
 pub mod primary;
 pub mod robot;
 mod server;
+pub mod stepping;
 pub mod urscript;
 
 use std::io;
@@ -28,10 +43,12 @@ use std::net::{IpAddr, Ipv4Addr, SocketAddr, TcpStream};
 use std::sync::Arc;
 use std::sync::atomic::Ordering;
 use std::thread::JoinHandle;
+use std::time::Duration;
 
 pub use robot::{RobotInit, Snapshot};
 pub use server::PortKind;
 use server::{Shared, lock};
+pub use stepping::{StepError, StepReport, Stepping};
 pub use ur5e::rtde::ControllerVersion;
 
 /// Simulator settings.
@@ -66,6 +83,9 @@ pub struct SimConfig {
     pub init: RobotInit,
     /// Width of an object between the gripper fingers (m), if any.
     pub gripper_object_width_m: Option<f64>,
+    /// Who advances the controller: its own wall-clock thread, or the owner through
+    /// [`Ur5eSim::step`] (lock-step HIL).
+    pub stepping: Stepping,
 }
 
 impl Default for SimConfig {
@@ -91,6 +111,7 @@ impl Default for SimConfig {
             programs: Vec::new(),
             init: RobotInit::default(),
             gripper_object_width_m: None,
+            stepping: Stepping::WallClock,
         }
     }
 }
@@ -143,7 +164,7 @@ impl core::fmt::Debug for Ur5eSim {
 }
 
 impl Ur5eSim {
-    /// Binds every port and starts the control loop.
+    /// Binds every port and, with [`Stepping::WallClock`], starts the control loop.
     pub fn start(cfg: SimConfig) -> io::Result<Self> {
         if !(cfg.rate_hz > 0.0 && cfg.rate_hz <= 10_000.0) {
             return Err(io::Error::new(
@@ -166,13 +187,15 @@ impl Ur5eSim {
             realtime: bind(PortKind::Realtime, cfg.realtime_port)?,
             gripper: bind(PortKind::Gripper, cfg.gripper_port)?,
         };
-        let control = {
-            let shared = Arc::clone(&shared);
-            std::thread::Builder::new()
-                .name("sim-ur5e-control".into())
-                .spawn(move || server::control_loop(shared))?
-        };
-        threads.push(control);
+        if cfg.stepping == Stepping::WallClock {
+            let control = {
+                let shared = Arc::clone(&shared);
+                std::thread::Builder::new()
+                    .name("sim-ur5e-control".into())
+                    .spawn(move || server::control_loop(shared))?
+            };
+            threads.push(control);
+        }
         Ok(Self {
             shared,
             ports,
@@ -183,6 +206,36 @@ impl Ur5eSim {
     /// Where it listens.
     pub fn ports(&self) -> SimPorts {
         self.ports
+    }
+
+    /// [`Stepping::External`] only: advances the controller by exactly one period
+    /// (`1 / rate_hz`), publishes the new state, and blocks (at most [`stepping::STEP_WAIT`]
+    /// per phase, wall time) until input sent before the call was applied and every started
+    /// RTDE connection due this cycle has written its data package. A client can therefore
+    /// read the package at once, without waiting: that is what makes lock-step deterministic.
+    pub fn step(&self) -> Result<StepReport, StepError> {
+        if self.shared.cfg.stepping != Stepping::External {
+            return Err(StepError::NotExternal);
+        }
+        Ok(self.shared.step_external())
+    }
+
+    /// The control period, `1 / rate_hz` (rounded to whole nanoseconds).
+    pub fn period(&self) -> Duration {
+        Duration::from_nanos((1e9 / self.shared.cfg.rate_hz).round() as u64)
+    }
+
+    /// Controller time: cycles stepped so far times [`Self::period`] (the RTDE `timestamp` is
+    /// the same value in seconds, `cycle / rate_hz`).
+    pub fn controller_time(&self) -> Duration {
+        let cycle = lock(&self.shared.published).snap.cycle;
+        let ns = u64::try_from(self.period().as_nanos()).unwrap_or(u64::MAX);
+        Duration::from_nanos(ns.saturating_mul(cycle))
+    }
+
+    /// How this simulator is clocked.
+    pub fn stepping(&self) -> Stepping {
+        self.shared.cfg.stepping
     }
 
     /// The newest published state.

@@ -742,10 +742,14 @@ impl RobotModel {
         false
     }
 
-    /// Advances the controller by `dt` seconds.
+    /// Advances the controller by `dt` seconds, the control period: the same every call.
+    ///
+    /// Time is `cycle * dt`, not a running sum, so after n steps the controller time (RTDE
+    /// `timestamp`) is exactly `n * dt` as the stepping world computes it, with no rounding
+    /// drift between the two clocks.
     pub fn step(&mut self, dt: f64, inputs: &InputTable) {
-        self.time_s += dt;
         self.cycle += 1;
+        self.time_s = self.cycle as f64 * dt;
         self.gripper.step(dt);
         self.step_modes(dt);
         if self.robot_mode != robot_mode::RUNNING {

@@ -1,7 +1,8 @@
 //! The controller's sockets: RTDE, dashboard, primary/secondary/real-time, gripper; and the
 //! 500 Hz control thread that steps the [`RobotModel`] and publishes snapshots.
 //!
-//! Threads: one control thread; one accept thread per port; per connection a reader thread
+//! Threads: one control thread (none with `Stepping::External`: the owner steps, see
+//! `stepping`); one accept thread per port; per connection a reader thread
 //! (requests, scripts) and, where the controller streams, a writer thread that waits for the
 //! next published snapshot and writes only the newest one, so a slow or silent client (ur_rtde
 //! never reads 30003) never holds up the control loop or other clients.
@@ -21,6 +22,7 @@ use crate::SimConfig;
 use crate::fields::{InputTable, OutputField, resolve_output};
 use crate::primary;
 use crate::robot::{RobotModel, Snapshot};
+use crate::stepping::{self, AckSlot, ReaderSync, STEP_WAIT, StepReport};
 use crate::urscript::parse_program;
 
 /// The robot and its RTDE inputs, behind one lock.
@@ -80,6 +82,13 @@ pub(crate) struct Shared {
     /// Open connections by port kind, so they can be cut (fault injection, shutdown).
     pub conns: Mutex<Vec<(PortKind, u64, TcpStream)>>,
     pub overruns: AtomicU64,
+    /// Reader threads whose input must be applied before an external step (RTDE, URScript).
+    pub readers: Mutex<Vec<(u64, Arc<ReaderSync>)>>,
+    /// RTDE streamers' acknowledgements, and the condvar they notify.
+    pub acks: Mutex<Vec<AckSlot>>,
+    pub acked: Condvar,
+    /// One external step at a time.
+    pub step_lock: Mutex<()>,
 }
 
 /// Which socket a connection came in on.
@@ -121,7 +130,94 @@ impl Shared {
             next_conn: AtomicU64::new(1),
             conns: Mutex::new(Vec::new()),
             overruns: AtomicU64::new(0),
+            readers: Mutex::new(Vec::new()),
+            acks: Mutex::new(Vec::new()),
+            acked: Condvar::new(),
+            step_lock: Mutex::new(()),
         }
+    }
+
+    /// Advances the model by one period and publishes the snapshot; returns its sequence
+    /// number (= the controller cycle).
+    fn step_model(&self) -> Published {
+        let dt = 1.0 / self.cfg.rate_hz;
+        let snap = {
+            let mut ctl = lock(&self.ctl);
+            let Controller { robot, inputs } = &mut *ctl;
+            robot.step(dt, inputs);
+            robot.snapshot()
+        };
+        let published = {
+            let mut p = lock(&self.published);
+            p.seq += 1;
+            p.snap = snap;
+            *p
+        };
+        self.tick.notify_all();
+        published
+    }
+
+    /// One external step (see `stepping`): apply pending input, advance, wait until every RTDE
+    /// streamer has handled the new cycle.
+    pub fn step_external(&self) -> StepReport {
+        let _one_at_a_time = lock(&self.step_lock);
+        let inputs_lagging = stepping::wait_drained(&self.readers);
+        let p = self.step_model();
+        let guard = lock(&self.acks);
+        let (guard, _) = self
+            .acked
+            .wait_timeout_while(guard, STEP_WAIT, |acks| {
+                acks.iter().any(|a| a.handled < p.seq) && !self.stopping()
+            })
+            .unwrap_or_else(|e| e.into_inner());
+        StepReport {
+            cycle: p.snap.cycle,
+            time_s: p.snap.time_s,
+            rtde_packages_written: guard.iter().filter(|a| a.written == p.seq).count(),
+            rtde_lagging: guard.iter().filter(|a| a.handled < p.seq).count(),
+            inputs_lagging,
+        }
+    }
+
+    /// Registers an RTDE streamer; returns the sequence number it starts after. Under the
+    /// `published` lock, so no step can fall between reading the number and registering.
+    fn add_streamer(&self, conn: u64) -> u64 {
+        let p = lock(&self.published);
+        lock(&self.acks).push(AckSlot {
+            conn,
+            handled: p.seq,
+            written: 0,
+        });
+        p.seq
+    }
+
+    /// A streamer has handled `seq` (and written it, if `wrote`).
+    fn ack(&self, conn: u64, seq: u64, wrote: bool) {
+        {
+            let mut acks = lock(&self.acks);
+            if let Some(a) = acks.iter_mut().find(|a| a.conn == conn) {
+                a.handled = seq;
+                if wrote {
+                    a.written = seq;
+                }
+            }
+        }
+        self.acked.notify_all();
+    }
+
+    fn remove_streamer(&self, conn: u64) {
+        lock(&self.acks).retain(|a| a.conn != conn);
+        self.acked.notify_all();
+    }
+
+    fn add_reader(&self, conn: u64, stream: &TcpStream) -> io::Result<Arc<ReaderSync>> {
+        let sync = Arc::new(ReaderSync::new(stream)?);
+        lock(&self.readers).push((conn, Arc::clone(&sync)));
+        Ok(sync)
+    }
+
+    fn remove_reader(&self, conn: u64) {
+        lock(&self.readers).retain(|(c, _)| *c != conn);
     }
 
     fn stopping(&self) -> bool {
@@ -167,25 +263,13 @@ impl Shared {
 /// The control thread: steps the model at `rate_hz` on absolute deadlines.
 pub(crate) fn control_loop(shared: Arc<Shared>) {
     let period = Duration::from_secs_f64(1.0 / shared.cfg.rate_hz);
-    let dt = 1.0 / shared.cfg.rate_hz;
     let mut next = Instant::now() + period;
     while !shared.stopping() {
         let now = Instant::now();
         if next > now {
             std::thread::sleep(next - now);
         }
-        let snap = {
-            let mut ctl = lock(&shared.ctl);
-            let Controller { robot, inputs } = &mut *ctl;
-            robot.step(dt, inputs);
-            robot.snapshot()
-        };
-        {
-            let mut p = lock(&shared.published);
-            p.seq += 1;
-            p.snap = snap;
-        }
-        shared.tick.notify_all();
+        shared.step_model();
         next += period;
         // Far behind (machine stalled): skip ahead rather than burst to catch up.
         let now = Instant::now();
@@ -230,7 +314,7 @@ pub(crate) fn listen(
                             PortKind::Rtde => rtde_connection(&shared, id, stream),
                             PortKind::Dashboard => dashboard_connection(&shared, stream),
                             PortKind::Primary | PortKind::Secondary | PortKind::Realtime => {
-                                script_connection(&shared, kind, stream)
+                                script_connection(&shared, id, kind, stream)
                             }
                             PortKind::Gripper => gripper_connection(&shared, stream),
                         };
@@ -288,13 +372,26 @@ fn rtde_connection(shared: &Arc<Shared>, id: u64, stream: TcpStream) -> io::Resu
         next_input_id: 1,
         ..RtdeConn::default()
     }));
+    let sync = shared.add_reader(id, &stream)?;
+    // Registered here, before the streamer thread exists: a client that starts the stream
+    // before that thread is scheduled still gets the next cycle's package.
+    let seen = shared.add_streamer(id);
     let streamer = {
         let (shared, writer, conn) = (Arc::clone(shared), Arc::clone(&writer), Arc::clone(&conn));
         std::thread::Builder::new()
             .name("sim-ur5e-rtde-out".into())
-            .spawn(move || rtde_stream(&shared, &writer, &conn))?
+            .spawn(move || rtde_stream(&shared, id, seen, &writer, &conn))
     };
-    let result = rtde_requests(shared, id, stream, &writer, &conn);
+    let streamer = match streamer {
+        Ok(s) => s,
+        Err(e) => {
+            shared.remove_streamer(id);
+            shared.remove_reader(id);
+            return Err(e);
+        }
+    };
+    let result = rtde_requests(shared, id, stream, &sync, &writer, &conn);
+    shared.remove_reader(id);
     lock(&conn).closed = true;
     lock(&shared.ctl).inputs.release(id);
     if let Ok(w) = writer.lock() {
@@ -302,59 +399,82 @@ fn rtde_connection(shared: &Arc<Shared>, id: u64, stream: TcpStream) -> io::Resu
     }
     shared.tick.notify_all();
     let _ = streamer.join();
+    shared.remove_streamer(id);
     result
 }
 
-/// Writes the output recipe's data packages, newest snapshot only.
-fn rtde_stream(shared: &Shared, writer: &Mutex<TcpStream>, conn: &Mutex<RtdeConn>) {
-    let mut seen = lock(&shared.published).seq;
+/// Writes the output recipe's data packages, newest snapshot only, and acknowledges every
+/// sequence number it handled (for external stepping).
+fn rtde_stream(
+    shared: &Shared,
+    id: u64,
+    mut seen: u64,
+    writer: &Mutex<TcpStream>,
+    conn: &Mutex<RtdeConn>,
+) {
     let mut buf = Vec::with_capacity(2048);
     loop {
         if shared.stopping() || lock(conn).closed {
-            return;
+            break;
         }
         let Some(p) = shared.wait_newer(seen, Duration::from_millis(100)) else {
             continue;
         };
         seen = p.seq;
-        let (recipe, protocol) = {
-            let c = lock(conn);
-            match (&c.output, c.started) {
-                (Some(r), true) if p.seq % r.divisor == 0 => (r.clone(), c.protocol),
-                _ => continue,
-            }
-        };
-        buf.clear();
-        buf.extend_from_slice(&[0, 0, PackageType::DataPackage as u8]);
-        // Protocol 1 data packages carry no recipe id.
-        if protocol >= 2 {
-            buf.push(recipe.id);
-        }
-        {
-            let ctl = lock(&shared.ctl);
-            for f in &recipe.fields {
-                f.value(&p.snap, &ctl.inputs).encode(&mut buf);
-            }
-        }
-        if wire::patch_size(&mut buf, 0).is_err() {
-            log::error!("sim-ur5e RTDE: output recipe too large for one package");
-            return;
-        }
-        // Start/pause may have changed meanwhile: decide under the writer lock.
-        let mut w = lock(writer);
-        if !lock(conn).started {
-            continue;
-        }
-        if w.write_all(&buf).is_err() {
-            return;
+        match rtde_write_package(shared, &p, &mut buf, writer, conn) {
+            Ok(wrote) => shared.ack(id, p.seq, wrote),
+            Err(()) => break,
         }
     }
+    // A streamer that is gone must never hold up a step.
+    shared.ack(id, u64::MAX, false);
+}
+
+/// Writes the data package of `p` if the connection is started and the cycle is due (output
+/// divisor); `Ok(false)` when not due, `Err` when the connection cannot stream any more.
+fn rtde_write_package(
+    shared: &Shared,
+    p: &Published,
+    buf: &mut Vec<u8>,
+    writer: &Mutex<TcpStream>,
+    conn: &Mutex<RtdeConn>,
+) -> Result<bool, ()> {
+    let (recipe, protocol) = {
+        let c = lock(conn);
+        match (&c.output, c.started) {
+            (Some(r), true) if p.seq % r.divisor == 0 => (r.clone(), c.protocol),
+            _ => return Ok(false),
+        }
+    };
+    buf.clear();
+    buf.extend_from_slice(&[0, 0, PackageType::DataPackage as u8]);
+    // Protocol 1 data packages carry no recipe id.
+    if protocol >= 2 {
+        buf.push(recipe.id);
+    }
+    {
+        let ctl = lock(&shared.ctl);
+        for f in &recipe.fields {
+            f.value(&p.snap, &ctl.inputs).encode(buf);
+        }
+    }
+    if wire::patch_size(buf, 0).is_err() {
+        log::error!("sim-ur5e RTDE: output recipe too large for one package");
+        return Err(());
+    }
+    // Start/pause may have changed meanwhile: decide under the writer lock.
+    let mut w = lock(writer);
+    if !lock(conn).started {
+        return Ok(false);
+    }
+    w.write_all(buf).map(|()| true).map_err(|_| ())
 }
 
 fn rtde_requests(
     shared: &Shared,
     id: u64,
     mut stream: TcpStream,
+    sync: &ReaderSync,
     writer: &Mutex<TcpStream>,
     conn: &Mutex<RtdeConn>,
 ) -> io::Result<()> {
@@ -365,6 +485,9 @@ fn rtde_requests(
             buf.copy_within(start..end, 0);
             end -= start;
             start = 0;
+        }
+        if sync.wait_for_data(&stream)? == 0 {
+            return Ok(());
         }
         let n = stream.read(&mut buf[end..])?;
         if n == 0 {
@@ -743,7 +866,12 @@ fn dashboard_reply(shared: &Shared, command: &str, loaded: &mut Option<String>) 
 // ---------------------------------------------------------------------------------------------
 // Primary / secondary / real-time (30001 / 30002 / 30003)
 
-fn script_connection(shared: &Arc<Shared>, kind: PortKind, stream: TcpStream) -> io::Result<()> {
+fn script_connection(
+    shared: &Arc<Shared>,
+    id: u64,
+    kind: PortKind,
+    stream: TcpStream,
+) -> io::Result<()> {
     let writer = stream.try_clone()?;
     let done = Arc::new(AtomicBool::new(false));
     let streamer = {
@@ -752,7 +880,17 @@ fn script_connection(shared: &Arc<Shared>, kind: PortKind, stream: TcpStream) ->
             .name(format!("sim-ur5e-{kind:?}-out"))
             .spawn(move || state_stream(&shared, kind, writer, &done))?
     };
-    let result = script_reader(shared, kind, stream);
+    let sync = match shared.add_reader(id, &stream) {
+        Ok(s) => s,
+        Err(e) => {
+            done.store(true, Ordering::Release);
+            shared.tick.notify_all();
+            let _ = streamer.join();
+            return Err(e);
+        }
+    };
+    let result = script_reader(shared, kind, stream, &sync);
+    shared.remove_reader(id);
     done.store(true, Ordering::Release);
     shared.tick.notify_all();
     let _ = streamer.join();
@@ -796,10 +934,18 @@ fn state_stream(shared: &Shared, kind: PortKind, mut w: TcpStream, done: &Atomic
 
 /// Collects script text; runs each complete program (a `def`/`sec` block up to its `end`, or
 /// a single bare line).
-fn script_reader(shared: &Shared, kind: PortKind, mut stream: TcpStream) -> io::Result<()> {
+fn script_reader(
+    shared: &Shared,
+    kind: PortKind,
+    mut stream: TcpStream,
+    sync: &ReaderSync,
+) -> io::Result<()> {
     let mut pending = String::new();
     let mut chunk = vec![0u8; 64 * 1024];
     loop {
+        if sync.wait_for_data(&stream)? == 0 {
+            return Ok(());
+        }
         let n = stream.read(&mut chunk)?;
         if n == 0 {
             return Ok(());

@@ -10,6 +10,12 @@
 //! | `<ns>/base/state` | [`BaseStateMsg`] | newest state |
 //! | `<ns>/arm/state` | [`ArmStateMsg`] | newest state |
 //! | `<ns>/events` | [`EventMsg`] | none |
+//! | `<ns>/plan/task` | [`TaskPlanMsg`] (v2: load steps, 128 steps) | newest plan |
+//! | `<ns>/plan/request` | [`ReplanRequestMsg`] | none |
+//! | `<ns>/heatmaps` | [`HeatmapsMsg`] | newest |
+//! | `<ns>/base/pose` | [`BasePoseMsg`] (localisation fixes) | newest fix |
+//! | `<ns>/health` | [`HeartbeatMsg`] | none |
+//! | `<ns>/camera/frame` | [`CameraFrameMsg`] (1280 x 960 RGB8 max + metric header) | newest frame |
 //!
 //! ```no_run
 //! use std::time::Duration;
@@ -35,13 +41,24 @@
 //! `stamp_ns` from the runtime clock, and [`Received::age_ns`] / [`Received::is_stale`] compare
 //! it with the reader's now.
 
+mod camera;
 mod messages;
+mod mission;
 mod port;
 
+pub use camera::{
+    CAMERA_MAX_BYTES, CAMERA_MAX_HEIGHT_PX, CAMERA_MAX_WIDTH_PX, CameraFrameHeader, CameraFrameMsg,
+    PixelFormat,
+};
 pub use messages::{
     ArmSafety, ArmStateMsg, BaseMode, BaseStateMsg, EVENT_DETAIL_CAPACITY, EventKind, EventMsg,
     MAX_PLAN_STEPS, MessageError, OVERHEAD_MAX_HEIGHT_PX, OVERHEAD_MAX_PIXELS,
     OVERHEAD_MAX_WIDTH_PX, OverheadFrame, OverheadFrameHeader, PlanMsg, PlanStep, TableSide,
+};
+pub use mission::{
+    BasePoseMsg, HEATMAP_COLS, HEATMAP_ROWS, HeartbeatMsg, HeatmapsMsg, LocationHeatmap,
+    MAX_HEATMAPS, MAX_TASK_OBJECTS, MAX_TASK_STEPS, PoseFixKind, ProcessRole, ReplanReason,
+    ReplanRequestMsg, TaskPlanMsg, TaskStep, TaskStepKind,
 };
 pub use port::{
     IpcNode, NodeError, PortError, PublishError, ReceiveError, Received, TopicPublisher,
@@ -75,6 +92,12 @@ mod sealed {
     impl Sealed for super::BaseStateMsg {}
     impl Sealed for super::ArmStateMsg {}
     impl Sealed for super::EventMsg {}
+    impl Sealed for super::TaskPlanMsg {}
+    impl Sealed for super::ReplanRequestMsg {}
+    impl Sealed for super::HeatmapsMsg {}
+    impl Sealed for super::BasePoseMsg {}
+    impl Sealed for super::HeartbeatMsg {}
+    impl Sealed for super::CameraFrameMsg {}
 }
 
 impl Topic for OverheadFrame {
@@ -133,5 +156,77 @@ impl Topic for EventMsg {
     const MAX_PUBLISHERS: usize = 8;
     fn stamp_ns(&self) -> u64 {
         self.stamp_ns
+    }
+}
+
+impl Topic for TaskPlanMsg {
+    const NAME: &'static str = "plan/task";
+    const HISTORY: usize = 1;
+    const BUFFER: usize = 4;
+    const MAX_SUBSCRIBERS: usize = 8;
+    const MAX_PUBLISHERS: usize = 2;
+    fn stamp_ns(&self) -> u64 {
+        self.stamp_ns
+    }
+}
+
+impl Topic for ReplanRequestMsg {
+    const NAME: &'static str = "plan/request";
+    // A request is for the planner running now; a late joiner must not answer an old one.
+    const HISTORY: usize = 0;
+    const BUFFER: usize = 8;
+    const MAX_SUBSCRIBERS: usize = 4;
+    const MAX_PUBLISHERS: usize = 2;
+    fn stamp_ns(&self) -> u64 {
+        self.stamp_ns
+    }
+}
+
+impl Topic for HeatmapsMsg {
+    const NAME: &'static str = "heatmaps";
+    const HISTORY: usize = 1;
+    // About 200 KiB each; readers want the newest.
+    const BUFFER: usize = 2;
+    const MAX_SUBSCRIBERS: usize = 4;
+    const MAX_PUBLISHERS: usize = 2;
+    fn stamp_ns(&self) -> u64 {
+        self.stamp_ns
+    }
+}
+
+impl Topic for BasePoseMsg {
+    const NAME: &'static str = "base/pose";
+    const HISTORY: usize = 1;
+    // 10 Hz fixes for over a second.
+    const BUFFER: usize = 16;
+    const MAX_SUBSCRIBERS: usize = 8;
+    const MAX_PUBLISHERS: usize = 2;
+    fn stamp_ns(&self) -> u64 {
+        self.stamp_ns
+    }
+}
+
+impl Topic for HeartbeatMsg {
+    const NAME: &'static str = "health";
+    const HISTORY: usize = 0;
+    const BUFFER: usize = 16;
+    const MAX_SUBSCRIBERS: usize = 8;
+    const MAX_PUBLISHERS: usize = 8;
+    fn stamp_ns(&self) -> u64 {
+        self.stamp_ns
+    }
+}
+
+impl Topic for CameraFrameMsg {
+    const NAME: &'static str = "camera/frame";
+    const HISTORY: usize = 1;
+    // Frames are 3.5 MiB and every subscriber slot is reserved in shared memory per publisher:
+    // one buffered frame (the planner wants the newest), few readers; a second publisher slot
+    // lets a restarted camera process join before the dead one is cleaned up.
+    const BUFFER: usize = 1;
+    const MAX_SUBSCRIBERS: usize = 3;
+    const MAX_PUBLISHERS: usize = 2;
+    fn stamp_ns(&self) -> u64 {
+        self.header.stamp_ns
     }
 }

@@ -51,6 +51,16 @@ pub enum MessageError {
     /// The text of an event is not UTF-8.
     #[error("event detail text is not UTF-8")]
     DetailNotUtf8,
+    /// A number that must be finite (a goal, a pose) is NaN or infinite.
+    #[error("{message}.{field}[{index}] holds a number that is not finite")]
+    NotFinite {
+        /// Message type.
+        message: &'static str,
+        /// Field name.
+        field: &'static str,
+        /// Entry of the field.
+        index: u32,
+    },
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -166,10 +176,22 @@ pub enum TableSide {
 }
 
 impl TableSide {
-    fn to_wire(self) -> i32 {
+    pub(crate) fn to_wire(self) -> i32 {
         match self {
             Self::Near => 1,
             Self::Far => -1,
+        }
+    }
+
+    pub(crate) fn from_wire(value: i32, message: &'static str) -> Result<Self, MessageError> {
+        match value {
+            1 => Ok(Self::Near),
+            -1 => Ok(Self::Far),
+            other => Err(MessageError::UnknownEnumValue {
+                message,
+                field: "side",
+                value: other as u32,
+            }),
         }
     }
 }
@@ -206,15 +228,7 @@ impl PlanStep {
 
     /// The table side, checked.
     pub fn side(&self) -> Result<TableSide, MessageError> {
-        match self.side {
-            1 => Ok(TableSide::Near),
-            -1 => Ok(TableSide::Far),
-            other => Err(MessageError::UnknownEnumValue {
-                message: "PlanStep",
-                field: "side",
-                value: other as u32,
-            }),
-        }
+        TableSide::from_wire(self.side, "PlanStep")
     }
 }
 
@@ -485,6 +499,19 @@ pub enum EventKind {
     BaseFault = 9,
     /// The arm reported a protective or emergency stop.
     ArmStopped = 10,
+    /// Objects were loaded onto the tray at the station.
+    Loaded = 11,
+    /// Another onboard process stopped (heartbeat lost): motion stopped.
+    PeerLost = 12,
+    /// The mission ended before its plan did (a lost device, a dead peer, an unrecoverable
+    /// stop); the detail says why.
+    MissionAborted = 13,
+    /// The simulated world saw the base or the arm touch furniture (HIL only).
+    Collision = 14,
+    /// The simulated world judged a released object against its target (HIL only).
+    ObjectJudged = 15,
+    /// A leg of the plan was driven (or given up).
+    LegFinished = 16,
 }
 
 impl EventKind {
@@ -500,6 +527,12 @@ impl EventKind {
             8 => Self::LinkLost,
             9 => Self::BaseFault,
             10 => Self::ArmStopped,
+            11 => Self::Loaded,
+            12 => Self::PeerLost,
+            13 => Self::MissionAborted,
+            14 => Self::Collision,
+            15 => Self::ObjectJudged,
+            16 => Self::LegFinished,
             _ => {
                 return Err(MessageError::UnknownEnumValue {
                     message: "EventMsg",

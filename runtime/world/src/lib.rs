@@ -20,6 +20,7 @@
 //!
 //! File formats, conventions and the robot's dimensions: `docs/world.md`.
 
+pub mod camera;
 pub mod collision;
 mod file;
 pub mod generate;

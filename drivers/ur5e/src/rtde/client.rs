@@ -592,6 +592,44 @@ impl RtdeClient {
         }
     }
 
+    /// Stores the newest data package in `out` if one has arrived, waiting at most `wait` (wall
+    /// time) when none is buffered; `Ok(false)` when none came. For a cyclic executive that
+    /// must not block for long, and for lock-step HIL, where the package of the cycle is
+    /// already in the socket when the world's step returns (`wait` may then be zero).
+    ///
+    /// Silence is not an error here: the caller decides staleness on its own clock. Link
+    /// failures (EOF, reset, corrupt stream) are errors as in [`Self::receive_latest`].
+    pub fn receive_newest(
+        &mut self,
+        out: &mut DataPackage,
+        wait: Duration,
+    ) -> Result<bool, RtdeReceiveError> {
+        if self.state != RtdeState::Started {
+            return Err(RtdeReceiveError::NotStarted);
+        }
+        let deadline = Instant::now() + wait;
+        let mut got = 0u32;
+        loop {
+            got += self.drain_buffered(out)?;
+            // Take whatever the kernel already holds, without waiting.
+            if self.fill_nonblocking()? {
+                continue;
+            }
+            if got > 0 {
+                out.skipped = got - 1;
+                return Ok(true);
+            }
+            if wait.is_zero() || Instant::now() >= deadline {
+                return Ok(false);
+            }
+            match self.fill(deadline, wait, "data package") {
+                Ok(()) => {}
+                Err(RtdeLinkError::Timeout { .. }) => return Ok(false),
+                Err(e) => return Err(e.into()),
+            }
+        }
+    }
+
     /// Decodes every complete package in the buffer; returns the number of data packages.
     fn drain_buffered(&mut self, out: &mut DataPackage) -> Result<u32, RtdeReceiveError> {
         let mut count = 0;

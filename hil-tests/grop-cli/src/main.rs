@@ -8,6 +8,7 @@ use clap::{Parser, Subcommand};
 mod cmd_bench;
 mod cmd_datagen;
 mod cmd_demo;
+mod cmd_demo_closed_loop;
 mod cmd_eval;
 mod cmd_model_eval;
 mod cmd_render;

@@ -4,6 +4,7 @@
 //! time over all task plans (U = R F - C, eq. 1); the chosen plan gets its arm trajectories; then
 //! the plan is executed in the trial simulator with navigation noise. Prints the decision (F, C, U
 //! per location and the top plans) and writes a picture of heatmaps, paths, goals and outcomes.
+//! This is `--in-process`; by default `grop demo` runs the closed loop (`cmd_demo_closed_loop`).
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -45,9 +46,40 @@ pub struct Args {
     /// Picture resolution (pixels per metre).
     #[arg(long, default_value_t = 48.0)]
     pub pixels_per_m: f64,
+    /// Run the pipeline as one in-process calculation (the trial simulator, as `grop eval`
+    /// does) instead of the closed loop of processes.
+    #[arg(long)]
+    pub in_process: bool,
+    /// After a failed unload: `none` (the paper: go on with the rest) or `replan`.
+    #[arg(long, default_value = "none")]
+    pub retry: String,
+    /// Run at wall-clock pace (1 simulated second per second) instead of as fast as the
+    /// processes compute.
+    #[arg(long)]
+    pub wall_clock: bool,
+    /// Camera frame size, WIDTHxHEIGHT.
+    #[arg(long, default_value = "640x480")]
+    pub camera: String,
+    /// Folder for the run's files (scene, deployment, logs, world report).
+    #[arg(long, default_value = "out/demo-run")]
+    pub run_dir: PathBuf,
+    /// Do not run `cargo build` for the world and the onboard binaries first.
+    #[arg(long)]
+    pub no_build: bool,
+    /// Simulated time limit of the mission, s.
+    #[arg(long, default_value_t = 600.0)]
+    pub max_sim_s: f64,
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
+    if args.in_process {
+        return run_in_process(args);
+    }
+    crate::cmd_demo_closed_loop::run(args)
+}
+
+/// The pipeline once as one calculation (the fast model `grop eval` uses): no processes.
+fn run_in_process(args: Args) -> anyhow::Result<()> {
     let method = MethodKind::parse(&args.method).with_context(|| {
         format!(
             "unknown --method {:?}: use grop, satisficing, petlon, dvh or fcn-planning",
@@ -202,7 +234,7 @@ fn draw(
     img
 }
 
-fn draw_segment(img: &mut RgbImage, room: &RoomView, a: (f64, f64), b: (f64, f64), c: Rgb<u8>) {
+pub(crate) fn draw_segment(img: &mut RgbImage, room: &RoomView, a: (f64, f64), b: (f64, f64), c: Rgb<u8>) {
     let length = (b.0 - a.0).hypot(b.1 - a.1);
     let n = (length / 0.02).ceil().max(1.0) as usize;
     for k in 0..=n {

@@ -1,0 +1,211 @@
+//! `grop demo` as the closed loop: the world process (simulated clock, RMP on the virtual CAN
+//! bus, UR5e on TCP, objects, camera, localisation) and the unchanged onboard processes
+//! (perception + planning, executive) run one mission in simulated time. Shows live progress,
+//! then prints the decision, each step's outcome and the latency of each stage, and draws the
+//! route as driven with the outcomes.
+
+use std::time::Duration;
+
+use anyhow::Context;
+use hil_world::mission::{self, MissionSpec};
+use hil_world::objects::{ObjectState, Verdict};
+use hil_world::report::{MissionEnd, WorldReport};
+use indicatif::{ProgressBar, ProgressStyle};
+use world::view::{self, Rgb};
+
+use crate::cmd_demo::{Args, draw_segment};
+use crate::common;
+
+fn parse_camera(s: &str) -> anyhow::Result<(u32, u32)> {
+    let (w, h) = s
+        .split_once('x')
+        .with_context(|| format!("--camera {s:?}: expected WIDTHxHEIGHT"))?;
+    Ok((
+        w.parse().with_context(|| format!("--camera width {w:?}"))?,
+        h.parse().with_context(|| format!("--camera height {h:?}"))?,
+    ))
+}
+
+/// Runs the closed-loop demo.
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let (scene, robot) = args.world.load()?;
+    anyhow::ensure!(
+        ["none", "replan"].contains(&args.retry.as_str()),
+        "--retry {:?}: use none or replan",
+        args.retry
+    );
+    let model = std::fs::canonicalize(&args.model).or_else(|_| {
+        // From any working directory: the committed model in the workspace.
+        std::fs::canonicalize(
+            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../..").join(&args.model),
+        )
+    });
+    let model = model.with_context(|| format!("the feasibility network {}", args.model.display()))?;
+    let bins = mission::binaries(!args.no_build)?;
+    let spec = MissionSpec {
+        dir: args.run_dir.clone(),
+        scene: scene.clone(),
+        robot: robot.clone(),
+        model,
+        method: args.method.clone(),
+        paper_smp: args.paper_smp,
+        retry: args.retry.clone(),
+        seed: args.world.seed,
+        pace: args.wall_clock.then_some(1.0),
+        camera_px: parse_camera(&args.camera)?,
+        max_sim_s: args.max_sim_s,
+        progress_s: 0.5,
+    };
+    println!(
+        "scene {:?}: {} chairs, {} objects; robot at {:.1} m/s, R = {}; method {}",
+        scene.name,
+        scene.chairs.len(),
+        scene.targets.len(),
+        robot.speed_mps,
+        robot.success_bonus_r,
+        args.method
+    );
+    let started = std::time::Instant::now();
+    let running = mission::start(&spec, &bins)?;
+    let bar = ProgressBar::new_spinner();
+    bar.set_style(
+        ProgressStyle::with_template("{spinner} {elapsed_precise} {msg}")
+            .unwrap_or_else(|_| ProgressStyle::default_spinner()),
+    );
+    bar.enable_steady_tick(Duration::from_millis(100));
+    let mut echo = |line: &str| {
+        if let Some(rest) = line.strip_prefix("progress ") {
+            bar.set_message(rest.to_owned());
+        } else if line.starts_with('[') {
+            bar.println(line);
+        }
+    };
+    let report = running.finish(Duration::from_secs(900), &mut echo)?;
+    bar.finish_and_clear();
+    print_report(&report, started.elapsed());
+    let picture = draw(&args, &scene, &report);
+    if let Some(dir) = args.out.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    }
+    picture
+        .save(&args.out)
+        .with_context(|| format!("writing {}", args.out.display()))?;
+    println!("wrote {} (run files in {})", args.out.display(), args.run_dir.display());
+    if report.end == MissionEnd::NeverStarted {
+        anyhow::bail!("the onboard processes never joined; see the logs in {}", args.run_dir.display());
+    }
+    Ok(())
+}
+
+fn print_report(report: &WorldReport, wall: Duration) {
+    if let Some(plan) = report.plans.first() {
+        println!(
+            "decision: plan {} with U = {:.1}, F = {:.2}, C = {:.1} s, decided in {:.2} ms (cut views + Psi + GROP)",
+            plan.plan_id,
+            plan.utility,
+            plan.feasibility,
+            plan.cost_s,
+            plan.decision_us as f64 / 1e3
+        );
+        for (object, side, x, y, f) in &plan.unloads {
+            let side = if *side > 0 { "near" } else { "far" };
+            println!("  unload obj{object} from the {side} side at ({x:.2}, {y:.2}), F = {f:.2}");
+        }
+    }
+    for p in report.plans.iter().skip(1) {
+        println!(
+            "replan at {:.1} s: plan {} ({} unloads), decided in {:.2} ms",
+            p.t_s,
+            p.plan_id,
+            p.unloads.len(),
+            p.decision_us as f64 / 1e3
+        );
+    }
+    println!("steps:");
+    for o in &report.objects {
+        let what = match o.state {
+            ObjectState::Released { verdict, error_m, .. } => {
+                format!("{verdict:?}, {:.1} cm from its target", error_m * 100.0)
+            }
+            ObjectState::AtStation => "never loaded".into(),
+            ObjectState::OnTray { .. } => "left on the tray (unload failed or given up)".into(),
+            ObjectState::Held => "still in the gripper".into(),
+        };
+        println!("  obj{}: {what}", o.index);
+    }
+    for c in &report.collisions {
+        println!(
+            "  contact: {:?} at {:.1} s, base at ({:.2}, {:.2})",
+            c.part, c.t_s, c.base[0], c.base[1]
+        );
+    }
+    for d in &report.deaths {
+        println!("  process {} died at {:.1} s", d.name, d.t_s);
+    }
+    let t = &report.timing;
+    println!(
+        "mission {:?}: placed {} of {} in {:.1} s simulated, {:.1} s wall ({:.1}x real time); world step {:.0} us",
+        report.end,
+        report.placed,
+        report.objects.len(),
+        t.sim_time_s,
+        wall.as_secs_f64(),
+        t.sim_time_s / wall.as_secs_f64().max(1e-9),
+        t.world_step_us
+    );
+    println!("latency per stage:");
+    if let Some(plan) = report.plans.first() {
+        println!("  perception + planning (wall): {:.2} ms", plan.decision_us as f64 / 1e3);
+    }
+    if let Some(s) = t.request_to_plan_s {
+        println!("  plan request -> plan (simulated): {:.0} ms", s * 1e3);
+    }
+    if let Some(s) = t.plan_to_motion_s {
+        println!("  plan -> base moving (simulated): {:.0} ms", s * 1e3);
+    }
+    let legs = &report.legs;
+    if !legs.is_empty() {
+        let n = legs.len() as f64;
+        let rms = (legs
+            .iter()
+            .map(|l| (l.realised[0] - l.commanded[0]).powi(2) + (l.realised[1] - l.commanded[1]).powi(2))
+            .sum::<f64>()
+            / (2.0 * n))
+            .sqrt();
+        println!("  {} legs: realised - commanded, rms per axis {:.3} m", legs.len(), rms);
+    }
+}
+
+fn draw(args: &Args, scene: &world::Scene, report: &WorldReport) -> view::RgbImage {
+    let room = common::room_view(scene, args.pixels_per_m, true);
+    let mut img = view::render_room(scene, &room);
+    for w in report.trajectory.windows(2) {
+        draw_segment(
+            &mut img,
+            &room,
+            (w[0][1], w[0][2]),
+            (w[1][1], w[1][2]),
+            Rgb([40, 40, 200]),
+        );
+    }
+    for leg in &report.legs {
+        view::draw_marker(&mut img, &room, leg.commanded[0], leg.commanded[1], 0.05, Rgb([120, 120, 120]));
+    }
+    for o in &report.objects {
+        let colour = match o.state {
+            ObjectState::Released {
+                verdict: Verdict::Placed,
+                ..
+            } => Rgb([0, 160, 0]),
+            _ => Rgb([210, 0, 0]),
+        };
+        view::draw_marker(&mut img, &room, o.target[0], o.target[1], 0.09, colour);
+        if let ObjectState::Released { at, .. } = o.state {
+            view::draw_marker(&mut img, &room, at[0], at[1], 0.04, Rgb([250, 200, 0]));
+        }
+    }
+    for c in &report.collisions {
+        view::draw_marker(&mut img, &room, c.base[0], c.base[1], 0.07, Rgb([255, 0, 255]));
+    }
+    img
+}

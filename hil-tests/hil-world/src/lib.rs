@@ -1,0 +1,776 @@
+//! The closed-loop HIL world: one process owns the truth and the clock.
+//!
+//! It creates the simulated clock ([`grop_clock::SimClockHost`]) and steps, every 2 ms of
+//! simulated time: the simulated Segway RMP on the iceoryx2 virtual CAN bus (it answers the
+//! executive's commands and moves as a unicycle), the simulated UR5e controller on loopback TCP
+//! (externally stepped, mounted on the moving base), the objects (tray, gripper, release and
+//! judgement, [`objects`]), continuous collision checks of the base footprint and the arm links
+//! against the furniture, an overhead camera publishing real-size RGB frames on
+//! `camera/frame`, and localisation fixes on `base/pose` whose per-leg error makes the
+//! realised stop follow the robot file's navigation noise ([`fixes`]). Between steps it lets
+//! the onboard processes (planner, executive) run in lock-step. It listens to `events` and
+//! `plan/task`, notices dead processes through the clock, and writes a [`report`].
+//!
+//! The onboard binaries run against it unchanged: they see a CAN bus, a UR5e, iceoryx2 topics
+//! and a clock.
+
+pub mod fixes;
+pub mod mission;
+pub mod objects;
+pub mod report;
+
+use std::time::{Duration, Instant};
+
+use can_bus::VirtualCanBus;
+use grop_clock::{HostConfig, SimClockHost};
+use grop_ipc::{
+    BasePoseMsg, CameraFrameMsg, EventMsg, HeartbeatMsg, IpcNode, PoseFixKind, ProcessRole,
+    TaskPlanMsg, TaskStepKind, TopicPublisher, TopicSubscriber,
+};
+use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
+use sim_rmp::{SimRmp, SimRmpNode};
+use sim_ur5e::Ur5eSim;
+use ur5e_kin::{BasePose, ObstacleBox};
+use world::{RobotConfig, Scene};
+
+use fixes::{FixModel, FixSimulator};
+use objects::{JudgeConfig, ObjectEvent, ObjectTracker, Verdict};
+use report::{
+    CollisionRecord, DeathRecord, EventRecord, LegRecord, LoopTiming, MissionEnd, Part,
+    PlanRecord, WorldReport,
+};
+
+/// The world's settings.
+#[derive(Debug, Clone)]
+pub struct WorldConfig {
+    /// iceoryx2 namespace of the run.
+    pub namespace: String,
+    /// Name of the simulated clock (`sim:<name>` for the onboard processes).
+    pub clock_name: String,
+    /// Virtual CAN bus name.
+    pub bus_name: String,
+    /// The scene (truth).
+    pub scene: Scene,
+    /// The robot file.
+    pub robot: RobotConfig,
+    /// Seed of the world's noise (localisation).
+    pub seed: u64,
+    /// Step of the world (the UR5e's RTDE period). 2 ms.
+    pub step: Duration,
+    /// Camera frame size, px (width, height).
+    pub camera_px: (u32, u32),
+    /// Camera frame period (simulated).
+    pub camera_period: Duration,
+    /// Localisation fix period.
+    pub fix_period: Duration,
+    /// Localisation error model.
+    pub fixes: FixModel,
+    /// Judging.
+    pub judge: JudgeConfig,
+    /// Tray slots, base frame (the executive's, so loading matches).
+    pub tray_slots: Vec<[f64; 3]>,
+    /// `None`: lock-step as fast as possible; `Some(r)`: r simulated seconds per wall second.
+    pub pace: Option<f64>,
+    /// Participants that must join before the mission clock runs (names).
+    pub expect: Vec<String>,
+    /// How long (wall) to wait for them.
+    pub join_timeout: Duration,
+    /// Simulated time limit of the mission.
+    pub max_sim_time: Duration,
+    /// After the mission ends, keep stepping this long (so stops can be observed).
+    pub linger: Duration,
+    /// Print a progress line every this much simulated time (`None`: quiet).
+    pub progress_every: Option<Duration>,
+}
+
+impl WorldConfig {
+    /// Defaults for a scene and robot; names derived from `run`.
+    pub fn new(run: &str, scene: Scene, robot: RobotConfig, seed: u64) -> Self {
+        let sigma = robot.nav_noise_sigma_m;
+        Self {
+            namespace: format!("hil-{run}"),
+            clock_name: format!("hil-{run}"),
+            bus_name: format!("hil-{run}"),
+            scene,
+            robot,
+            seed,
+            step: Duration::from_millis(2),
+            camera_px: (640, 480),
+            camera_period: Duration::from_secs(1),
+            fix_period: Duration::from_millis(100),
+            fixes: FixModel::for_sigma(sigma),
+            judge: JudgeConfig::default(),
+            tray_slots: vec![[-0.20, -0.18, 1.10], [-0.20, 0.0, 1.10], [-0.20, 0.18, 1.10]],
+            pace: None,
+            expect: vec!["grop-planner".into(), "grop-executive".into()],
+            join_timeout: Duration::from_secs(60),
+            max_sim_time: Duration::from_secs(900),
+            linger: Duration::from_secs(2),
+            progress_every: None,
+        }
+    }
+}
+
+/// Why the world could not start.
+#[derive(Debug, thiserror::Error)]
+pub enum WorldError {
+    /// The clock.
+    #[error("simulated clock: {0}")]
+    Clock(#[from] grop_clock::ClockError),
+    /// The CAN bus.
+    #[error("virtual CAN bus: {0}")]
+    Bus(String),
+    /// The UR5e simulator.
+    #[error("simulated UR5e: {0}")]
+    Arm(std::io::Error),
+    /// iceoryx2.
+    #[error("IPC: {0}")]
+    Ipc(String),
+}
+
+/// The ports the simulated UR5e listens on (for the executive's deployment).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ArmPorts {
+    /// RTDE.
+    pub rtde: u16,
+    /// Dashboard.
+    pub dashboard: u16,
+    /// Secondary (URScript).
+    pub secondary: u16,
+    /// Gripper.
+    pub gripper: u16,
+}
+
+struct Ports {
+    frames: TopicPublisher<CameraFrameMsg>,
+    poses: TopicPublisher<BasePoseMsg>,
+    world_events: TopicPublisher<EventMsg>,
+    health: TopicPublisher<HeartbeatMsg>,
+    events: TopicSubscriber<EventMsg>,
+    plans: TopicSubscriber<TaskPlanMsg>,
+}
+
+/// The world, built and listening; [`World::run`] runs the mission.
+pub struct World {
+    config: WorldConfig,
+    host: SimClockHost,
+    base: SimRmpNode<VirtualCanBus>,
+    arm: Ur5eSim,
+    ports: Ports,
+    objects: ObjectTracker,
+    fixes: FixSimulator,
+    start: BasePose,
+    _node: IpcNode,
+}
+
+fn ipc(e: impl std::fmt::Display) -> WorldError {
+    WorldError::Ipc(e.to_string())
+}
+
+fn secs(d: Duration) -> f64 {
+    d.as_secs_f64()
+}
+
+fn ns(d: Duration) -> u64 {
+    u64::try_from(d.as_nanos()).unwrap_or(u64::MAX)
+}
+
+impl World {
+    /// Creates the clock, joins the bus, starts the simulated UR5e (externally stepped, on
+    /// ephemeral loopback ports) and opens the topics.
+    pub fn new(config: WorldConfig) -> Result<Self, WorldError> {
+        let host = SimClockHost::create(
+            &config.clock_name,
+            HostConfig {
+                // Until everyone joined, run at wall-clock pace so connections can be made.
+                pace: Some(1.0),
+                ..HostConfig::default()
+            },
+        )?;
+        let bus = VirtualCanBus::join(&config.bus_name, "sim-rmp")
+            .map_err(|e| WorldError::Bus(e.to_string()))?;
+        let base = SimRmpNode::new(bus, SimRmp::new(sim_rmp::SimConfig::default()));
+        let arm = Ur5eSim::start(sim_ur5e::SimConfig {
+            stepping: sim_ur5e::Stepping::External,
+            rate_hz: 1.0 / config.step.as_secs_f64(),
+            ..sim_ur5e::SimConfig::ephemeral()
+        })
+        .map_err(WorldError::Arm)?;
+        let node = IpcNode::new(&config.namespace, "world").map_err(ipc)?;
+        let ports = Ports {
+            frames: node.publisher().map_err(ipc)?,
+            poses: node.publisher().map_err(ipc)?,
+            world_events: node.publisher().map_err(ipc)?,
+            health: node.publisher().map_err(ipc)?,
+            events: node.subscriber().map_err(ipc)?,
+            plans: node.subscriber().map_err(ipc)?,
+        };
+        let targets: Vec<[f64; 3]> = config.scene.targets.iter().map(|t| t.as_array()).collect();
+        let objects = ObjectTracker::new(&targets, &config.tray_slots, config.judge);
+        let fixes = FixSimulator::new(config.fixes, config.seed);
+        let s = config.scene.robot_start;
+        let start = BasePose {
+            x_m: s.x_m,
+            y_m: s.y_m,
+            yaw_rad: s.yaw_rad,
+        };
+        Ok(Self {
+            config,
+            host,
+            base,
+            arm,
+            ports,
+            objects,
+            fixes,
+            start,
+            _node: node,
+        })
+    }
+
+    /// Where the simulated UR5e listens.
+    pub fn arm_ports(&self) -> ArmPorts {
+        let p = self.arm.ports();
+        ArmPorts {
+            rtde: p.rtde.port(),
+            dashboard: p.dashboard.port(),
+            secondary: p.secondary.port(),
+            gripper: p.gripper.port(),
+        }
+    }
+
+    /// The settings.
+    pub fn config(&self) -> &WorldConfig {
+        &self.config
+    }
+
+    /// The true base pose in the world.
+    fn base_pose(&self) -> BasePose {
+        let p = self.base.sim().pose();
+        let (s, c) = self.start.yaw_rad.sin_cos();
+        BasePose {
+            x_m: self.start.x_m + c * p.x_m - s * p.y_m,
+            y_m: self.start.y_m + s * p.x_m + c * p.y_m,
+            yaw_rad: world_wrap(self.start.yaw_rad + p.yaw_rad),
+        }
+    }
+
+    /// Runs the mission to its end and returns the report. `stop` is polled every step (a
+    /// signal handler's flag).
+    pub fn run(&mut self, stop: &dyn Fn() -> bool) -> WorldReport {
+        let wall_start = Instant::now();
+        let cfg = self.config.clone();
+        let mut report = WorldReport {
+            scene: cfg.scene.name.clone(),
+            seed: cfg.seed,
+            end: MissionEnd::NeverStarted,
+            placed: 0,
+            objects: Vec::new(),
+            collisions: Vec::new(),
+            legs: Vec::new(),
+            trajectory: Vec::new(),
+            events: Vec::new(),
+            plans: Vec::new(),
+            deaths: Vec::new(),
+            timing: LoopTiming::default(),
+        };
+        let mut frame_id = 0u64;
+        let mut fix_seq = 0u64;
+        let mut hb_seq = 0u64;
+        let mut next_frame = Duration::ZERO;
+        let mut next_fix = Duration::ZERO;
+        let mut next_traj = Duration::ZERO;
+        let mut next_progress = Duration::ZERO;
+        let mut next_collision_check = Duration::ZERO;
+        let mut joined = false;
+        let mut mission_start: Option<Duration> = None;
+        let mut ended_at: Option<Duration> = None;
+        let mut latest_plan: Vec<grop_ipc::TaskStep> = Vec::new();
+        let mut still_s = 0.0_f64;
+        let mut was_moving = false;
+        let mut leg_recorded = true;
+        let mut collided_this_leg = false;
+        let mut in_collision = [false; 2];
+        let mut first_request: Option<f64> = None;
+        let mut first_plan: Option<f64> = None;
+        let mut first_motion: Option<f64> = None;
+        let mut step_wall = Duration::ZERO;
+        let mut obstacles: Vec<ObstacleBox> = Vec::with_capacity(64);
+        let mut frame_buf = vec![0u8; (cfg.camera_px.0 * cfg.camera_px.1 * 3) as usize];
+        let camera =
+            world::camera::OverheadCamera::fitting_room_with(&cfg.scene, cfg.camera_px.0, cfg.camera_px.1);
+        let mut rendered_once = false;
+        let dt = cfg.step;
+
+        loop {
+            let now = self.host.now();
+            let work_started = Instant::now();
+            if stop() {
+                break;
+            }
+            // Everyone there? Then the mission clock runs at its own pace.
+            if !joined {
+                let names: Vec<String> =
+                    self.host.participants().into_iter().map(|p| p.0).collect();
+                if cfg.expect.iter().all(|e| names.iter().any(|n| n == e)) {
+                    joined = true;
+                    mission_start = Some(now);
+                    self.host.set_pace(cfg.pace);
+                    log::info!("world: {names:?} joined at {:.3} s; mission starts", secs(now));
+                } else if wall_start.elapsed() > cfg.join_timeout {
+                    log::error!("world: onboard processes never joined ({names:?})");
+                    report.end = MissionEnd::NeverStarted;
+                    break;
+                }
+            }
+
+            // Devices.
+            if let Err(e) = self.base.poll(now) {
+                log::warn!("world: sim-rmp: {e}");
+            }
+            if let Err(e) = self.arm.step() {
+                log::warn!("world: sim-ur5e step: {e}");
+            }
+            let pose = self.base_pose();
+            let (v, w) = self.base.sim().velocity();
+            let speed = f64::from(v).abs() + 0.3 * f64::from(w).abs();
+            self.fixes.observe_motion(speed, secs(dt));
+            let world_from_base = Isometry3::from_parts(
+                Translation3::new(pose.x_m, pose.y_m, 0.0),
+                UnitQuaternion::from_axis_angle(&Vector3::z_axis(), pose.yaw_rad),
+            );
+            let snap = self.arm.snapshot();
+            let place = &cfg.robot.place;
+            let flange = world_from_base * place.mount.base_from_arm() * place.arm.forward(&snap.q);
+            let tcp = flange * Point3::new(0.0, 0.0, place.tcp_offset_m);
+
+            // Leg bookkeeping: a start after standing still begins a new leg.
+            if speed > 0.01 {
+                if !was_moving && still_s >= cfg.fixes.still_before_leg_s {
+                    collided_this_leg = false;
+                    leg_recorded = false;
+                }
+                if first_motion.is_none() && first_plan.is_some() {
+                    first_motion = Some(secs(now));
+                }
+                still_s = 0.0;
+                was_moving = true;
+            } else {
+                still_s += secs(dt);
+                was_moving = false;
+            }
+            // At rest after a leg: realised vs commanded.
+            if !leg_recorded && still_s >= 0.3 {
+                leg_recorded = true;
+                let goal = latest_plan
+                    .iter()
+                    .filter(|s| s.kind() == Ok(TaskStepKind::Navigate))
+                    .map(|s| [s.x_m, s.y_m, s.yaw_rad])
+                    .min_by(|a, b| {
+                        let da = (a[0] - pose.x_m).hypot(a[1] - pose.y_m);
+                        let db = (b[0] - pose.x_m).hypot(b[1] - pose.y_m);
+                        da.total_cmp(&db)
+                    });
+                if let Some(goal) = goal {
+                    if (goal[0] - pose.x_m).hypot(goal[1] - pose.y_m) < 0.6 {
+                        let b = self.fixes.bias();
+                        report.legs.push(LegRecord {
+                            t_s: secs(now),
+                            commanded: goal,
+                            realised: [pose.x_m, pose.y_m, pose.yaw_rad],
+                            fix_bias: [b[0], b[1]],
+                        });
+                    }
+                }
+            }
+
+            // Collisions, every 10 ms.
+            if now >= next_collision_check {
+                next_collision_check = now + Duration::from_millis(10);
+                let base_hit = world::base_collides(&cfg.scene, &cfg.robot, pose);
+                cfg.scene.obstacle_boxes_into(&cfg.robot, pose, &mut obstacles);
+                // The robot's own body (first box) is not furniture.
+                let furniture = obstacles.get(1..).unwrap_or(&[]);
+                let arm_hit = ur5e_kin::place::arm_collides(place, pose, &snap.q, furniture);
+                for (k, (hit, part)) in [(base_hit, Part::Base), (arm_hit, Part::Arm)]
+                    .into_iter()
+                    .enumerate()
+                {
+                    if hit && !in_collision[k] {
+                        collided_this_leg = true;
+                        report.collisions.push(CollisionRecord {
+                            t_s: secs(now),
+                            part,
+                            base: [pose.x_m, pose.y_m, pose.yaw_rad],
+                        });
+                        self.world_event(
+                            grop_ipc::EventKind::Collision,
+                            now,
+                            &format!("{part:?} touched furniture at ({:.2}, {:.2})", pose.x_m, pose.y_m),
+                        );
+                    }
+                    in_collision[k] = hit;
+                }
+            }
+
+            // Objects: loading at the station, gripper, release.
+            let station = cfg.scene.loading_station;
+            if still_s >= 1.0
+                && (pose.x_m - station.x_m).hypot(pose.y_m - station.y_m) < 0.5
+                && self.objects.any_at_station()
+            {
+                let mask = latest_plan
+                    .iter()
+                    .filter(|s| s.kind() == Ok(TaskStepKind::Load))
+                    .map(|s| s.load_mask)
+                    .find(|m| {
+                        self.objects.objects().iter().any(|o| {
+                            o.index < 64
+                                && m & (1u64 << o.index) != 0
+                                && o.state == objects::ObjectState::AtStation
+                        })
+                    });
+                if let Some(mask) = mask {
+                    if let Some(ObjectEvent::Loaded { mask }) = self.objects.load(mask) {
+                        self.world_event(
+                            grop_ipc::EventKind::Loaded,
+                            now,
+                            &format!("objects {mask:#x} put on the tray"),
+                        );
+                    }
+                }
+            }
+            let table = &cfg.scene.banquet_table;
+            let (width, event) = self.objects.step_gripper(
+                &world_from_base,
+                tcp,
+                snap.gripper_opening_m,
+                collided_this_leg,
+                |x, y| table.top_contains(x, y),
+            );
+            self.arm.set_gripper_object(width);
+            if let Some(ObjectEvent::Judged {
+                index,
+                verdict,
+                error_m,
+            }) = event
+            {
+                self.world_event(
+                    grop_ipc::EventKind::ObjectJudged,
+                    now,
+                    &format!("object {index}: {verdict:?}, {:.3} m from its target", error_m),
+                );
+            }
+
+            // Localisation fixes.
+            if now >= next_fix {
+                next_fix = now + cfg.fix_period;
+                let truth = [pose.x_m, pose.y_m, pose.yaw_rad];
+                let g = self.fixes.global_fix(truth);
+                fix_seq += 1;
+                let seq = fix_seq;
+                let _ = self.ports.poses.publish_with(|m| {
+                    m.seq = seq;
+                    m.stamp_ns = ns(now);
+                    m.set_kind(PoseFixKind::Global);
+                    m.x_m = g[0];
+                    m.y_m = g[1];
+                    m.yaw_rad = g[2];
+                    m.sigma_xy_m = cfg.fixes.leg_bias_sigma_m;
+                    m.sigma_yaw_rad = cfg.fixes.leg_yaw_sigma_rad;
+                });
+                let to_table = (pose.y_m - table_edge_y(&cfg.scene, pose.y_m)).abs();
+                if let Some(t) = self.fixes.table_fix(truth, to_table) {
+                    fix_seq += 1;
+                    let seq = fix_seq;
+                    let _ = self.ports.poses.publish_with(|m| {
+                        m.seq = seq;
+                        m.stamp_ns = ns(now);
+                        m.set_kind(PoseFixKind::TableRelative);
+                        m.x_m = t[0];
+                        m.y_m = t[1];
+                        m.yaw_rad = t[2];
+                        m.sigma_xy_m = cfg.fixes.table_sigma_m;
+                        m.sigma_yaw_rad = cfg.fixes.table_yaw_sigma_rad;
+                    });
+                }
+                hb_seq += 1;
+                let hb = hb_seq;
+                let _ = self.ports.health.publish_with(|h| {
+                    h.seq = hb;
+                    h.stamp_ns = ns(now);
+                    h.set_role(ProcessRole::World);
+                    h.pid = std::process::id();
+                });
+            }
+
+            // Camera.
+            if now >= next_frame {
+                next_frame = now + cfg.camera_period;
+                frame_id += 1;
+                let mut header = grop_ipc::CameraFrameHeader {
+                    frame_id,
+                    stamp_ns: ns(now),
+                    width_px: camera.width_px,
+                    height_px: camera.height_px,
+                    pixel_format: 0,
+                    row_stride_bytes: camera.width_px * 3,
+                    metres_per_px: camera.metres_per_px,
+                    left_x_m: camera.left_x_m,
+                    top_y_m: camera.top_y_m,
+                };
+                header.set_pixel_format(grop_ipc::PixelFormat::Rgb8);
+                // The furniture does not move: render once, publish the same picture.
+                if !rendered_once {
+                    rendered_once = true;
+                    if let Err(e) = world::camera::render_frame(&cfg.scene, &camera, &mut frame_buf) {
+                        log::error!("world: camera: {e}");
+                    }
+                }
+                let published = self.ports.frames.publish_with(|f| {
+                    if let Ok(dst) = f.image_mut(header) {
+                        if dst.len() == frame_buf.len() {
+                            dst.copy_from_slice(&frame_buf);
+                        }
+                    }
+                });
+                if published.is_ok() {
+                    report.timing.frames += 1;
+                }
+            }
+
+            // What the onboard processes say.
+            while let Ok(Some(plan)) = self.ports.plans.try_recv() {
+                if let Ok(steps) = plan.steps() {
+                    latest_plan.clear();
+                    latest_plan.extend_from_slice(steps);
+                    if first_plan.is_none() {
+                        first_plan = Some(secs(now));
+                    }
+                    report.plans.push(PlanRecord {
+                        t_s: secs(now),
+                        plan_id: plan.plan_id,
+                        answers_request: plan.answers_request,
+                        decision_us: plan.decision_us,
+                        utility: plan.utility,
+                        feasibility: plan.feasibility,
+                        cost_s: plan.cost_s,
+                        unloads: steps
+                            .iter()
+                            .filter(|s| s.kind() == Ok(TaskStepKind::Unload))
+                            .map(|s| (s.object_index, s.side, s.x_m, s.y_m, s.feasibility))
+                            .collect(),
+                    });
+                }
+            }
+            while let Ok(Some(ev)) = self.ports.events.try_recv() {
+                let kind = ev.kind();
+                let detail = ev.detail().unwrap_or("<not UTF-8>").to_owned();
+                let kind_name = match kind {
+                    Ok(k) => format!("{k:?}"),
+                    Err(_) => format!("unknown({})", ev.kind),
+                };
+                if kind == Ok(grop_ipc::EventKind::ReplanRequested) && first_request.is_none() {
+                    first_request = Some(ns_to_s(ev.stamp_ns));
+                }
+                let is_end = matches!(
+                    kind,
+                    Ok(grop_ipc::EventKind::PlanFinished | grop_ipc::EventKind::MissionAborted)
+                );
+                if cfg.progress_every.is_some() {
+                    println!("[{:7.2} s] {kind_name}: {detail}", ns_to_s(ev.stamp_ns));
+                }
+                report.events.push(EventRecord {
+                    t_s: ns_to_s(ev.stamp_ns),
+                    kind: kind_name,
+                    plan_id: ev.plan_id,
+                    step: ev.step_index,
+                    detail,
+                });
+                if is_end && ended_at.is_none() {
+                    ended_at = Some(now);
+                    report.end = if kind == Ok(grop_ipc::EventKind::PlanFinished) {
+                        MissionEnd::Finished
+                    } else {
+                        MissionEnd::Aborted
+                    };
+                }
+            }
+
+            // Deaths (the clock noticed), and what the base and arm did afterwards.
+            for gone in self.host.take_departures() {
+                println!(
+                    "[{:7.2} s] world: participant {:?} (pid {}) died",
+                    secs(gone.at),
+                    gone.name,
+                    gone.pid
+                );
+                report.deaths.push(DeathRecord {
+                    name: gone.name.clone(),
+                    pid: gone.pid,
+                    t_s: secs(gone.at),
+                    base_speed_then_mps: f64::from(v).abs(),
+                    base_stopped_at_s: None,
+                    arm_speed_then_radps: max_abs(&snap.qd),
+                    arm_stopped_at_s: None,
+                });
+                if gone.name == "grop-executive" && ended_at.is_none() {
+                    ended_at = Some(now);
+                    report.end = MissionEnd::ExecutiveDied;
+                }
+            }
+            for d in report.deaths.iter_mut() {
+                if d.base_stopped_at_s.is_none() && f64::from(v).abs() < 0.01 && f64::from(w).abs() < 0.01 {
+                    d.base_stopped_at_s = Some(secs(now));
+                }
+                if d.arm_stopped_at_s.is_none() && max_abs(&snap.qd) < 0.01 {
+                    d.arm_stopped_at_s = Some(secs(now));
+                }
+            }
+
+            if now >= next_traj {
+                next_traj = now + Duration::from_millis(200);
+                report
+                    .trajectory
+                    .push([secs(now), pose.x_m, pose.y_m, pose.yaw_rad]);
+            }
+            if let Some(every) = cfg.progress_every {
+                if now >= next_progress {
+                    next_progress = now + every;
+                    let placed = self
+                        .objects
+                        .objects()
+                        .iter()
+                        .filter(|o| matches!(o.state, objects::ObjectState::Released { verdict: Verdict::Placed, .. }))
+                        .count();
+                    println!(
+                        "progress t={:.1} x={:.2} y={:.2} v={:.2} placed={placed}/{}",
+                        secs(now),
+                        pose.x_m,
+                        pose.y_m,
+                        v,
+                        self.objects.objects().len()
+                    );
+                }
+            }
+
+            step_wall += work_started.elapsed();
+            report.timing.steps += 1;
+            if let Some(end) = ended_at {
+                if now >= end + cfg.linger {
+                    break;
+                }
+            }
+            if let Some(start) = mission_start {
+                if now.saturating_sub(start) > cfg.max_sim_time {
+                    report.end = MissionEnd::TimedOut;
+                    break;
+                }
+            }
+            self.host.advance_to(now + dt);
+        }
+
+        report.objects = self.objects.objects().to_vec();
+        report.placed = report
+            .objects
+            .iter()
+            .filter(|o| {
+                matches!(
+                    o.state,
+                    objects::ObjectState::Released {
+                        verdict: Verdict::Placed,
+                        ..
+                    }
+                )
+            })
+            .count();
+        report.timing.sim_time_s = secs(self.host.now());
+        report.timing.wall_time_s = wall_start.elapsed().as_secs_f64();
+        report.timing.world_step_us =
+            step_wall.as_secs_f64() * 1e6 / report.timing.steps.max(1) as f64;
+        report.timing.request_to_plan_s = match (first_request, first_plan) {
+            (Some(r), Some(p)) => Some((p - r).max(0.0)),
+            _ => None,
+        };
+        report.timing.plan_to_motion_s = match (first_plan, first_motion) {
+            (Some(p), Some(m)) => Some(m - p),
+            _ => None,
+        };
+        report
+    }
+
+    fn world_event(&mut self, kind: grop_ipc::EventKind, now: Duration, detail: &str) {
+        log::info!("world: {detail}");
+        let msg = EventMsg::new(kind, ns(now), detail);
+        let _ = self.ports.world_events.publish(&msg);
+    }
+}
+
+fn ns_to_s(ns: u64) -> f64 {
+    ns as f64 * 1e-9
+}
+
+fn max_abs(v: &[f64; 6]) -> f64 {
+    v.iter().fold(0.0, |m, x| m.max(x.abs()))
+}
+
+fn world_wrap(a: f64) -> f64 {
+    use std::f64::consts::{PI, TAU};
+    let w = (a + PI).rem_euclid(TAU) - PI;
+    if w <= -PI { w + TAU } else { w }
+}
+
+/// The banquet table's long edge on the side of `y`.
+fn table_edge_y(scene: &Scene, y: f64) -> f64 {
+    let t = &scene.banquet_table;
+    if y < world::scene::TABLE_CENTER_Y_M {
+        world::scene::TABLE_CENTER_Y_M - 0.5 * t.depth_m
+    } else {
+        world::scene::TABLE_CENTER_Y_M + 0.5 * t.depth_m
+    }
+}
+
+/// The deployment file the onboard processes of a HIL mission read (the format of
+/// `grop_onboard::deployment`): the scene as the map, the run's clock, bus and namespace, and
+/// the simulated UR5e's ports from the world's ready line.
+pub(crate) fn deployment_for(
+    spec: &mission::MissionSpec,
+    scene: &std::path::Path,
+    robot: &std::path::Path,
+    namespace: &str,
+    clock: &str,
+    bus: &str,
+    field: &dyn Fn(&str) -> anyhow::Result<String>,
+) -> anyhow::Result<String> {
+    let quote = |p: &std::path::Path| format!("{:?}", p.display().to_string());
+    Ok(format!(
+        "# Written by the HIL mission runner for one closed-loop run.\n\
+         namespace = {namespace:?}\n\
+         map = {}\n\
+         robot = {}\n\
+         model = {}\n\
+         can = \"vcan:{bus}\"\n\
+         clock = {clock:?}\n\
+         seed = {}\n\n\
+         [arm]\n\
+         host = \"127.0.0.1\"\n\
+         rtde_port = {}\n\
+         dashboard_port = {}\n\
+         script_port = {}\n\
+         gripper_port = {}\n\n\
+         [planner]\n\
+         method = {:?}\n\
+         paper_smp = {}\n\
+         retry = {:?}\n",
+        quote(scene),
+        quote(robot),
+        quote(&spec.model),
+        spec.seed,
+        field("rtde")?,
+        field("dashboard")?,
+        field("secondary")?,
+        field("gripper")?,
+        spec.method,
+        spec.paper_smp,
+        spec.retry,
+    ))
+}

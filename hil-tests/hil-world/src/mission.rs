@@ -1,0 +1,358 @@
+//! One closed-loop mission as processes: the world (`grop-world`) and the unchanged onboard
+//! binaries (`grop-planner`, `grop-executive`), started with names and ports that belong to
+//! this run only, so that missions run side by side and leftovers of crashed runs do not
+//! collide. Used by `grop demo`, `grop hil` and the closed-loop tests.
+
+use std::io::{BufRead, BufReader};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::mpsc::{Receiver, channel};
+use std::time::{Duration, Instant};
+
+use anyhow::{Context, bail};
+use world::{RobotConfig, Scene};
+
+use crate::report::WorldReport;
+
+/// Where the three binaries are.
+#[derive(Debug, Clone)]
+pub struct Binaries {
+    /// `grop-world`.
+    pub world: PathBuf,
+    /// `grop-planner`.
+    pub planner: PathBuf,
+    /// `grop-executive`.
+    pub executive: PathBuf,
+}
+
+const NAMES: [&str; 3] = ["grop-world", "grop-planner", "grop-executive"];
+
+fn workspace_root() -> PathBuf {
+    // hil-tests/hil-world -> the workspace.
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
+}
+
+fn find_in(dir: &Path) -> Option<Binaries> {
+    let p = |n: &str| dir.join(n);
+    NAMES.iter().all(|n| p(n).is_file()).then(|| Binaries {
+        world: p(NAMES[0]),
+        planner: p(NAMES[1]),
+        executive: p(NAMES[2]),
+    })
+}
+
+/// Finds the binaries next to the running program (or one folder up, for test binaries in
+/// `target/<profile>/deps`). With `build`, first runs `cargo build` for them in the same
+/// profile (quick when nothing changed), so a fresh clone's `cargo run -p grop-cli -- demo`
+/// builds everything it starts, from any working directory.
+pub fn binaries(build: bool) -> anyhow::Result<Binaries> {
+    let exe = std::env::current_exe().context("locating the running program")?;
+    let dir = exe
+        .parent()
+        .context("the running program has no folder")?
+        .to_path_buf();
+    let up = dir.parent().map(Path::to_path_buf);
+    if build {
+        let manifest = workspace_root().join("Cargo.toml");
+        if manifest.is_file() {
+            let release = dir.components().any(|c| c.as_os_str() == "release");
+            let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
+            let mut cmd = Command::new(cargo);
+            cmd.arg("build")
+                .arg("--manifest-path")
+                .arg(&manifest)
+                .args(["-p", "hil-world", "-p", "grop-onboard", "--bins"]);
+            if release {
+                cmd.arg("--release");
+            }
+            let status = cmd
+                .status()
+                .context("running cargo build for the world and the onboard binaries")?;
+            if !status.success() {
+                bail!("cargo build of grop-world, grop-planner and grop-executive failed");
+            }
+        }
+    }
+    find_in(&dir)
+        .or_else(|| up.as_deref().and_then(find_in))
+        .with_context(|| {
+            format!(
+                "grop-world, grop-planner and grop-executive are not next to {} (build them: \
+                 cargo build -p hil-world -p grop-onboard --bins)",
+                exe.display()
+            )
+        })
+}
+
+/// What to run.
+#[derive(Debug, Clone)]
+pub struct MissionSpec {
+    /// Folder for the run's files (scene, robot, deployment, report, logs).
+    pub dir: PathBuf,
+    /// The scene (the world's truth and the onboard map).
+    pub scene: Scene,
+    /// The robot file.
+    pub robot: RobotConfig,
+    /// Psi's ONNX file.
+    pub model: PathBuf,
+    /// Planning method name.
+    pub method: String,
+    /// The paper's Smp (whole heatmap) instead of free cells only.
+    pub paper_smp: bool,
+    /// Retry policy of the planner (`none`, the paper's, or `replan`).
+    pub retry: String,
+    /// Seed (world noise and the planner's draws).
+    pub seed: u64,
+    /// Pace (`None`: lock-step as fast as possible).
+    pub pace: Option<f64>,
+    /// Camera size.
+    pub camera_px: (u32, u32),
+    /// Simulated time limit, s.
+    pub max_sim_s: f64,
+    /// World progress lines every this many simulated seconds (0: none).
+    pub progress_s: f64,
+}
+
+static RUNS: AtomicU64 = AtomicU64::new(0);
+
+/// A run name unique on this machine (pid, counter, time).
+pub fn unique_run_name(prefix: &str) -> String {
+    let t = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map(|d| d.subsec_nanos())
+        .unwrap_or(0);
+    format!(
+        "{prefix}-{}-{}-{:x}",
+        std::process::id(),
+        RUNS.fetch_add(1, Ordering::Relaxed),
+        t & 0xffff
+    )
+}
+
+/// The processes of a running mission.
+pub struct RunningMission {
+    /// The run's name (clock, bus, namespace).
+    pub run: String,
+    /// The world.
+    pub world: Child,
+    /// The planner.
+    pub planner: Child,
+    /// The executive.
+    pub executive: Child,
+    lines: Receiver<String>,
+    report_path: PathBuf,
+}
+
+fn kill(child: &mut Child, signal: i32) {
+    // SAFETY: sending a signal to our own child by pid.
+    unsafe {
+        libc::kill(child.id() as libc::pid_t, signal);
+    }
+}
+
+impl RunningMission {
+    /// The next line the world printed, waiting up to `timeout`.
+    pub fn next_line(&self, timeout: Duration) -> Option<String> {
+        self.lines.recv_timeout(timeout).ok()
+    }
+
+    /// Waits until the world prints a line for which `pred` holds (returns it), forwarding
+    /// every line to `echo`.
+    pub fn wait_for_line(
+        &self,
+        timeout: Duration,
+        pred: impl Fn(&str) -> bool,
+        echo: &mut dyn FnMut(&str),
+    ) -> Option<String> {
+        let end = Instant::now() + timeout;
+        while let Some(left) = end.checked_duration_since(Instant::now()) {
+            match self.lines.recv_timeout(left) {
+                Ok(line) => {
+                    echo(&line);
+                    if pred(&line) {
+                        return Some(line);
+                    }
+                }
+                Err(_) => return None,
+            }
+        }
+        None
+    }
+
+    /// Kills the planner (SIGKILL: no chance to clean up).
+    pub fn kill_planner(&mut self) {
+        kill(&mut self.planner, libc::SIGKILL);
+        let _ = self.planner.wait();
+    }
+
+    /// Kills the executive (SIGKILL).
+    pub fn kill_executive(&mut self) {
+        kill(&mut self.executive, libc::SIGKILL);
+        let _ = self.executive.wait();
+    }
+
+    /// Waits for the world to finish (forwarding its lines to `echo`), then stops the onboard
+    /// processes and returns the world's report.
+    pub fn finish(mut self, timeout: Duration, echo: &mut dyn FnMut(&str)) -> anyhow::Result<WorldReport> {
+        let end = Instant::now() + timeout;
+        let status = loop {
+            while let Ok(line) = self.lines.try_recv() {
+                echo(&line);
+            }
+            if let Some(status) = self.world.try_wait().context("waiting for grop-world")? {
+                break status;
+            }
+            if Instant::now() > end {
+                kill(&mut self.world, libc::SIGTERM);
+                let _ = self.world.wait();
+                self.stop_onboard();
+                bail!("the mission did not finish within {timeout:?} (wall)");
+            }
+            std::thread::sleep(Duration::from_millis(20));
+        };
+        while let Ok(line) = self.lines.recv_timeout(Duration::from_millis(100)) {
+            echo(&line);
+        }
+        self.stop_onboard();
+        if !status.success() {
+            bail!("grop-world failed ({status}); see the log in {}", self.report_path.display());
+        }
+        let text = std::fs::read_to_string(&self.report_path)
+            .with_context(|| format!("reading {}", self.report_path.display()))?;
+        serde_json::from_str(&text).with_context(|| format!("parsing {}", self.report_path.display()))
+    }
+
+    fn stop_onboard(&mut self) {
+        for child in [&mut self.planner, &mut self.executive] {
+            if matches!(child.try_wait(), Ok(None)) {
+                kill(child, libc::SIGTERM);
+            }
+        }
+        let end = Instant::now() + Duration::from_secs(5);
+        for child in [&mut self.planner, &mut self.executive] {
+            while matches!(child.try_wait(), Ok(None)) && Instant::now() < end {
+                std::thread::sleep(Duration::from_millis(10));
+            }
+            if matches!(child.try_wait(), Ok(None)) {
+                kill(child, libc::SIGKILL);
+            }
+            let _ = child.wait();
+        }
+    }
+}
+
+impl Drop for RunningMission {
+    fn drop(&mut self) {
+        for child in [&mut self.world, &mut self.planner, &mut self.executive] {
+            if matches!(child.try_wait(), Ok(None)) {
+                kill(child, libc::SIGKILL);
+                let _ = child.wait();
+            }
+        }
+    }
+}
+
+/// Starts the world, waits for its ready line, then starts the planner and the executive
+/// against it.
+pub fn start(spec: &MissionSpec, bins: &Binaries) -> anyhow::Result<RunningMission> {
+    std::fs::create_dir_all(&spec.dir).with_context(|| format!("creating {}", spec.dir.display()))?;
+    let run = unique_run_name("m");
+    let scene_path = spec.dir.join("scene.toml");
+    spec.scene
+        .save(&scene_path)
+        .with_context(|| format!("writing {}", scene_path.display()))?;
+    let robot_path = spec.dir.join("robot.toml");
+    spec.robot
+        .save(&robot_path)
+        .with_context(|| format!("writing {}", robot_path.display()))?;
+    let report_path = spec.dir.join("world-report.json");
+    let _ = std::fs::remove_file(&report_path);
+    let log = |name: &str| -> anyhow::Result<Stdio> {
+        let path = spec.dir.join(format!("{name}.log"));
+        Ok(std::fs::File::create(&path)
+            .with_context(|| format!("creating {}", path.display()))?
+            .into())
+    };
+
+    let mut world_cmd = Command::new(&bins.world);
+    world_cmd
+        .arg("--scene")
+        .arg(&scene_path)
+        .arg("--robot")
+        .arg(&robot_path)
+        .args(["--run", &run, "--seed", &spec.seed.to_string()])
+        .args(["--camera", &format!("{}x{}", spec.camera_px.0, spec.camera_px.1)])
+        .args(["--max-sim-s", &spec.max_sim_s.to_string()])
+        .args(["--progress-s", &spec.progress_s.to_string()])
+        .arg("--report")
+        .arg(&report_path)
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(log("world")?);
+    if let Some(p) = spec.pace {
+        world_cmd.args(["--pace", &p.to_string()]);
+    }
+    let mut world = world_cmd.spawn().context("starting grop-world")?;
+    let stdout = world.stdout.take().context("grop-world has no stdout")?;
+    let (tx, lines) = channel();
+    std::thread::spawn(move || {
+        for line in BufReader::new(stdout).lines() {
+            let Ok(line) = line else { break };
+            if tx.send(line).is_err() {
+                break;
+            }
+        }
+    });
+    let ready = loop {
+        match lines.recv_timeout(Duration::from_secs(30)) {
+            Ok(line) if line.starts_with("grop-world ready") => break line,
+            Ok(_) => continue,
+            Err(_) => {
+                let _ = world.kill();
+                bail!("grop-world did not get ready (see {})", spec.dir.join("world.log").display());
+            }
+        }
+    };
+    let field = |key: &str| -> anyhow::Result<String> {
+        ready
+            .split_whitespace()
+            .find_map(|kv| kv.strip_prefix(&format!("{key}=")).map(str::to_owned))
+            .with_context(|| format!("grop-world's ready line has no {key}: {ready}"))
+    };
+    let clock = field("clock")?;
+    let namespace = field("namespace")?;
+    let bus = field("bus")?;
+
+    let deployment_path = spec.dir.join("deployment.toml");
+    let deployment = crate::deployment_for(spec, &scene_path, &robot_path, &namespace, &clock, &bus, &field)?;
+    std::fs::write(&deployment_path, deployment)
+        .with_context(|| format!("writing {}", deployment_path.display()))?;
+
+    let planner = Command::new(&bins.planner)
+        .arg("--deployment")
+        .arg(&deployment_path)
+        .stdin(Stdio::null())
+        .stdout(log("planner-out")?)
+        .stderr(log("planner")?)
+        .env("RUST_LOG", std::env::var("RUST_LOG").unwrap_or_else(|_| "info".into()))
+        .spawn()
+        .context("starting grop-planner")?;
+    let executive = Command::new(&bins.executive)
+        .arg("--deployment")
+        .arg(&deployment_path)
+        .stdin(Stdio::null())
+        .stdout(log("executive-out")?)
+        .stderr(log("executive")?)
+        .env("RUST_LOG", std::env::var("RUST_LOG").unwrap_or_else(|_| "info".into()))
+        .spawn()
+        .context("starting grop-executive")?;
+    Ok(RunningMission {
+        run,
+        world,
+        planner,
+        executive,
+        lines,
+        report_path,
+    })
+}

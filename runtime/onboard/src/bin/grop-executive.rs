@@ -1,0 +1,146 @@
+//! `grop-executive --deployment FILE [--namespace NS] [--clock SPEC]`: the executive as a
+//! process: connects the UR5e (RTDE, URScript, dashboard, gripper) and the RMP base's CAN bus
+//! named in the deployment, joins the runtime clock, and runs the cyclic executive (2 ms arm
+//! cycle, 50 Hz base loop) until SIGTERM or SIGINT, when it commands the base to zero and stops
+//! the arm before exiting. If it is killed instead, the base's own 0.5 s loss-of-command timeout
+//! and the UR controller's RTDE watchdog stop both.
+
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::Duration;
+
+use anyhow::Context;
+use can_bus::{CanBus, SocketCanBus, VirtualCanBus};
+use clap::Parser;
+use grop_onboard::deployment::{CanSpec, Deployment};
+use grop_onboard::executive::ur5e_arm::{ArmMotionSettings, Ur5eDevice};
+use grop_onboard::executive::{Executive, ExecutiveConfig, MissionState};
+
+/// Rank of the executive on a simulated clock: after the planner at each instant.
+const EXECUTIVE_CLOCK_RANK: u32 = 20;
+
+static STOP: AtomicBool = AtomicBool::new(false);
+
+extern "C" fn on_signal(_signal: libc::c_int) {
+    // Only an atomic store: async-signal-safe.
+    STOP.store(true, Ordering::Relaxed);
+}
+
+#[derive(Parser, Debug)]
+#[command(name = "grop-executive", about = "grop executive: base and arm loops", version)]
+struct Args {
+    /// Deployment file (TOML).
+    #[arg(long, value_name = "FILE")]
+    deployment: PathBuf,
+    /// iceoryx2 namespace instead of the deployment's.
+    #[arg(long)]
+    namespace: Option<String>,
+    /// Clock instead of the deployment's: `wall` or `sim:<name>`.
+    #[arg(long)]
+    clock: Option<String>,
+    /// Exit when the mission has finished or aborted (default: hold the base at zero until
+    /// stopped, as on the robot).
+    #[arg(long)]
+    exit_when_done: bool,
+}
+
+fn main() -> anyhow::Result<()> {
+    env_logger::Builder::from_env(env_logger::Env::default().default_filter_or("info")).init();
+    let args = Args::parse();
+    let mut deployment = Deployment::load(&args.deployment)?;
+    if let Some(namespace) = args.namespace {
+        deployment.namespace = namespace;
+    }
+    if let Some(clock) = args.clock {
+        deployment.clock = clock;
+    }
+    deployment
+        .validate()
+        .context("the deployment with the command-line overrides")?;
+    for signal in [libc::SIGTERM, libc::SIGINT] {
+        let handler: extern "C" fn(libc::c_int) = on_signal;
+        // SAFETY: installs an async-signal-safe handler (one atomic store) for a valid signal.
+        let previous = unsafe { libc::signal(signal, handler as libc::sighandler_t) };
+        if previous == libc::SIG_ERR {
+            anyhow::bail!("installing the handler for signal {signal} failed");
+        }
+    }
+    let scene = world::Scene::load(&deployment.map)
+        .with_context(|| format!("the map {}", deployment.map.display()))?;
+    let robot = deployment.load_robot().context("the robot file")?;
+    let objects = scene.targets.len();
+
+    // Devices first (the HIL world runs at wall-clock pace until we join its clock).
+    let bus: Box<dyn CanBus> = match &deployment.can {
+        CanSpec::Virtual { bus } => Box::new(
+            VirtualCanBus::join(bus, "grop-executive")
+                .with_context(|| format!("joining virtual CAN bus {bus}"))?,
+        ),
+        CanSpec::SocketCan { ifname } => Box::new(
+            SocketCanBus::open(ifname).with_context(|| format!("opening SocketCAN {ifname}"))?,
+        ),
+    };
+    let a = &deployment.arm;
+    let host: std::net::IpAddr = a
+        .host
+        .parse()
+        .with_context(|| format!("arm.host {:?} is not an IP address", a.host))?;
+    let arm_config = ur5e::ArmConfig {
+        host,
+        rtde_port: a.rtde_port,
+        dashboard_port: a.dashboard_port,
+        script_port: a.script_port,
+        gripper_port: Some(a.gripper_port),
+        tcp_offset: Some(ur5e::TcpPose::from_array([
+            0.0,
+            0.0,
+            robot.place.tcp_offset_m,
+            0.0,
+            0.0,
+            0.0,
+        ])),
+        ..ur5e::ArmConfig::default()
+    };
+    let arm = ur5e::Ur5eArm::connect(arm_config)
+        .with_context(|| format!("connecting the UR5e at {}", a.host))?;
+    let arm = Ur5eDevice::new(arm, ArmMotionSettings::default());
+    let node = grop_ipc::IpcNode::new(&deployment.namespace, "grop-executive")
+        .context("joining the iceoryx2 namespace")?;
+    let clock: Arc<dyn grop_clock::Clock> = Arc::from(
+        grop_clock::open(&deployment.clock, "grop-executive", EXECUTIVE_CLOCK_RANK)
+            .with_context(|| format!("opening clock {}", deployment.clock))?,
+    );
+    let mut executive = Executive::new(
+        ExecutiveConfig::for_robot(&robot),
+        Arc::clone(&clock),
+        bus,
+        arm,
+        &node,
+        scene,
+        objects,
+    )
+    .context("starting the executive")?;
+    log::info!(
+        "grop-executive: namespace `{}`, clock {}, CAN {}, arm {}:{}",
+        deployment.namespace,
+        deployment.clock,
+        deployment.can,
+        a.host,
+        a.rtde_port
+    );
+    let state = executive.run(&|| !STOP.load(Ordering::Relaxed), args.exit_when_done);
+    let stats = executive.stats();
+    log::info!(
+        "grop-executive: {state:?}; {} cycles, {} overruns, {} unloads ok, {} failed",
+        stats.cycles,
+        stats.overruns,
+        stats.unloads_ok,
+        stats.unloads_failed
+    );
+    // Give the zero command a moment on a real bus before the process goes.
+    if matches!(state, MissionState::Aborted(_)) && deployment.clock == "wall" {
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    Ok(())
+}

@@ -1,0 +1,82 @@
+//! `grop-planner --deployment FILE [--namespace NS] [--clock SPEC]`: the perception and planning
+//! node (camera frame -> views -> Psi -> GROP -> `plan/task`, `heatmaps`) as a process. Runs its
+//! 10 ms loop on the deployment's clock until SIGTERM or SIGINT, then exits cleanly. Logs with
+//! env_logger (`RUST_LOG`, default `info`).
+
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, Ordering};
+
+use anyhow::Context;
+use clap::Parser;
+use grop_onboard::deployment::Deployment;
+use grop_onboard::planner_node::{PLANNER_CLOCK_RANK, PlannerNode};
+
+/// Set by the signal handler, read by the loop.
+static STOP: AtomicBool = AtomicBool::new(false);
+
+extern "C" fn on_signal(_signal: libc::c_int) {
+    // Only an atomic store: async-signal-safe.
+    STOP.store(true, Ordering::Relaxed);
+}
+
+#[derive(Parser, Debug)]
+#[command(
+    name = "grop-planner",
+    about = "grop perception and planning node",
+    version
+)]
+struct Args {
+    /// Deployment file (TOML).
+    #[arg(long, value_name = "FILE")]
+    deployment: PathBuf,
+    /// iceoryx2 namespace instead of the deployment's.
+    #[arg(long)]
+    namespace: Option<String>,
+    /// Clock instead of the deployment's: `wall` or `sim:<name>`.
+    #[arg(long)]
+    clock: Option<String>,
+}
+
+fn main() -> anyhow::Result<()> {
+    env_logger::Builder::from_env(env_logger::Env::default().default_filter_or("info")).init();
+    let args = Args::parse();
+    let mut deployment = Deployment::load(&args.deployment)?;
+    if let Some(namespace) = args.namespace {
+        deployment.namespace = namespace;
+    }
+    if let Some(clock) = args.clock {
+        deployment.clock = clock;
+    }
+    deployment
+        .validate()
+        .context("the deployment with the command-line overrides")?;
+    for signal in [libc::SIGTERM, libc::SIGINT] {
+        let handler: extern "C" fn(libc::c_int) = on_signal;
+        // SAFETY: installs an async-signal-safe handler (one atomic store) for a valid signal.
+        let previous = unsafe { libc::signal(signal, handler as libc::sighandler_t) };
+        if previous == libc::SIG_ERR {
+            anyhow::bail!("installing the handler for signal {signal} failed");
+        }
+    }
+    log::info!(
+        "grop-planner: deployment {}, namespace `{}`, clock {}, map {}, model {}",
+        args.deployment.display(),
+        deployment.namespace,
+        deployment.clock,
+        deployment.map.display(),
+        deployment.model.display()
+    );
+    let mut node =
+        PlannerNode::from_deployment(&deployment).context("starting the planner node")?;
+    let clock = grop_clock::open(&deployment.clock, "grop-planner", PLANNER_CLOCK_RANK)
+        .with_context(|| format!("opening clock {}", deployment.clock))?;
+    node.run(clock.as_ref(), &STOP)
+        .context("running the planner node")?;
+    let (failures, last) = node.failures();
+    log::info!(
+        "grop-planner: stopped; {} loop overruns, {failures} unanswered requests{}",
+        node.overruns(),
+        last.map(|e| format!(" (last: {e})")).unwrap_or_default()
+    );
+    Ok(())
+}

@@ -1,0 +1,398 @@
+//! The unload of one object, as a non-blocking sequence of arm skills: pick the object from its
+//! tray slot, carry it over the target, lower, release, retreat to the carry pose.
+//!
+//! The placing configuration is solved with inverse kinematics (ur5e-kin's `plan_place`, tool
+//! pointing down, arm links checked against the map's furniture) at the base pose *measured* at
+//! the table (the table-relative fix), not at the pose the planner asked for: the base stops
+//! where noise put it and the arm makes up for it. The sequence advances one skill at a time
+//! through [`ArmPort`], polled once per arm cycle; it never blocks the executive.
+
+use std::time::Duration;
+
+use nalgebra::Point3;
+use ur5e_kin::{BasePose, Joints, ObstacleBox, PlaceConfig, PlaceFailure, plan_place};
+
+/// How far above the target (and the tray slot) the gripper approaches and retreats, m.
+pub const APPROACH_HEIGHT_M: f64 = 0.08;
+
+/// The arm as the unload sequence drives it: the `ur5e` driver on the robot, a fake in tests.
+pub trait ArmPort {
+    /// Starts a joint move to `q` (the previous skill must be finished).
+    fn start_move_joints(&mut self, q: &Joints, now: Duration) -> Result<(), ArmFault>;
+    /// Starts opening (`close == false`) or closing the gripper.
+    fn start_gripper(&mut self, close: bool, now: Duration) -> Result<(), ArmFault>;
+    /// Progress of the running skill at `now`.
+    fn poll(&mut self, now: Duration) -> Result<SkillStatus, ArmFault>;
+}
+
+/// Progress of one skill.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SkillStatus {
+    /// Still moving.
+    Running,
+    /// Done; for the gripper, whether it closed on an object.
+    Done {
+        /// Gripper closed on something (closing) / nothing in the way (opening).
+        object_held: bool,
+    },
+}
+
+/// Why the arm cannot go on.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ArmFault {
+    /// The controller link is gone (the driver already tried to stop the arm).
+    LinkLost,
+    /// Protective stop (a collision, a limit).
+    ProtectiveStop,
+    /// Emergency stop.
+    EmergencyStop,
+    /// A skill did not finish in time or stopped short.
+    SkillFailed,
+    /// The gripper did not answer or reported a fault.
+    GripperFault,
+}
+
+/// Why an unload did not place its object (the executive reports it and asks for a replan).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum UnloadFailure {
+    /// No placing configuration at the measured base pose.
+    Unreachable(PlaceFailure),
+    /// The gripper closed on nothing: the slot was empty.
+    NothingInSlot,
+    /// The object slipped out before release.
+    Dropped,
+    /// The arm faulted.
+    Arm(ArmFault),
+}
+
+/// The tray on the base: object slots in the base frame, and the arm's carry pose.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TrayGeometry {
+    /// Slot k: the joints that put the gripper on the object in slot k.
+    pub pick: Vec<Joints>,
+    /// Slot k: the joints above it.
+    pub pick_above: Vec<Joints>,
+    /// The pose the arm travels in (folded over the base).
+    pub carry: Joints,
+}
+
+/// Where a tray slot's object sits, base frame (x forward, z up), m.
+pub fn default_tray_slots() -> [[f64; 3]; 3] {
+    [[-0.20, -0.18, 1.10], [-0.20, 0.0, 1.10], [-0.20, 0.18, 1.10]]
+}
+
+/// Solves the tray's joints from slot positions in the base frame (the base at the origin, no
+/// furniture): an error names the slot the arm cannot reach.
+pub fn solve_tray(cfg: &PlaceConfig, slots: &[[f64; 3]]) -> Result<TrayGeometry, String> {
+    let origin = BasePose::default();
+    let mut pick = Vec::with_capacity(slots.len());
+    let mut pick_above = Vec::with_capacity(slots.len());
+    for (k, s) in slots.iter().enumerate() {
+        let at = plan_place(cfg, origin, Point3::new(s[0], s[1], s[2]), &[])
+            .map_err(|e| format!("tray slot {k} at {s:?} (base frame): {e:?}"))?;
+        let above = plan_place(
+            cfg,
+            origin,
+            Point3::new(s[0], s[1], s[2] + APPROACH_HEIGHT_M),
+            &[],
+        )
+        .map_err(|e| format!("above tray slot {k} at {s:?} (base frame): {e:?}"))?;
+        pick.push(at.joints);
+        pick_above.push(above.joints);
+    }
+    // Carry: above the middle slot, raised further, so the arm stays inside the base outline.
+    let mid = slots.get(slots.len() / 2).copied().unwrap_or([-0.2, 0.0, 1.1]);
+    let carry = plan_place(
+        cfg,
+        origin,
+        Point3::new(mid[0] + 0.05, mid[1], mid[2] + 0.25),
+        &[],
+    )
+    .map_err(|e| format!("carry pose above the tray: {e:?}"))?
+    .joints;
+    Ok(TrayGeometry {
+        pick,
+        pick_above,
+        carry,
+    })
+}
+
+/// The placing joints at the table, solved before the arm moves.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PlaceJoints {
+    /// On the target.
+    pub place: Joints,
+    /// Above it.
+    pub above: Joints,
+}
+
+/// Solves the placing joints for `target` from the measured base pose against the furniture
+/// `obstacles` (world frame). Allocates nothing.
+pub fn solve_place(
+    cfg: &PlaceConfig,
+    base: BasePose,
+    target: [f64; 3],
+    obstacles: &[ObstacleBox],
+) -> Result<PlaceJoints, PlaceFailure> {
+    let place = plan_place(
+        cfg,
+        base,
+        Point3::new(target[0], target[1], target[2]),
+        obstacles,
+    )?;
+    let above = plan_place(
+        cfg,
+        base,
+        Point3::new(target[0], target[1], target[2] + APPROACH_HEIGHT_M),
+        obstacles,
+    )?;
+    Ok(PlaceJoints {
+        place: place.joints,
+        above: above.joints,
+    })
+}
+
+/// The stages, in order.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Stage {
+    /// Open the gripper before reaching in.
+    OpenFirst,
+    /// Over the slot.
+    AboveSlot,
+    /// Down onto the object.
+    AtSlot,
+    /// Close on it.
+    Grasp,
+    /// Lift it out.
+    LiftFromSlot,
+    /// Over the target.
+    AboveTarget,
+    /// Down onto the table.
+    AtTarget,
+    /// Open: the object is on the table.
+    Release,
+    /// Up again.
+    Retreat,
+    /// Back to the carry pose.
+    Carry,
+}
+
+impl Stage {
+    fn next(self) -> Option<Stage> {
+        use Stage::*;
+        Some(match self {
+            OpenFirst => AboveSlot,
+            AboveSlot => AtSlot,
+            AtSlot => Grasp,
+            Grasp => LiftFromSlot,
+            LiftFromSlot => AboveTarget,
+            AboveTarget => AtTarget,
+            AtTarget => Release,
+            Release => Retreat,
+            Retreat => Carry,
+            Carry => return None,
+        })
+    }
+}
+
+/// What one poll of the sequence says.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum UnloadProgress {
+    /// Working on a stage.
+    Busy(Stage),
+    /// The object was released on the target and the arm is back in the carry pose.
+    Placed,
+    /// Gave up; the arm is (or is being) returned to the carry pose where possible.
+    Failed(UnloadFailure),
+}
+
+/// One unload in progress.
+#[derive(Debug, Clone)]
+pub struct UnloadSequence {
+    slot: usize,
+    joints: PlaceJoints,
+    stage: Stage,
+    started: bool,
+}
+
+impl UnloadSequence {
+    /// An unload of the object in tray slot `slot` with the solved placing joints.
+    pub fn new(slot: usize, joints: PlaceJoints) -> Self {
+        Self {
+            slot,
+            joints,
+            stage: Stage::OpenFirst,
+            started: false,
+        }
+    }
+
+    /// The current stage.
+    pub fn stage(&self) -> Stage {
+        self.stage
+    }
+
+    fn start(&self, arm: &mut dyn ArmPort, tray: &TrayGeometry, now: Duration) -> Result<(), ArmFault> {
+        let slot = self.slot.min(tray.pick.len().saturating_sub(1));
+        match self.stage {
+            Stage::OpenFirst | Stage::Release => arm.start_gripper(false, now),
+            Stage::Grasp => arm.start_gripper(true, now),
+            Stage::AboveSlot | Stage::LiftFromSlot => arm.start_move_joints(&tray.pick_above[slot], now),
+            Stage::AtSlot => arm.start_move_joints(&tray.pick[slot], now),
+            Stage::AboveTarget | Stage::Retreat => arm.start_move_joints(&self.joints.above, now),
+            Stage::AtTarget => arm.start_move_joints(&self.joints.place, now),
+            Stage::Carry => arm.start_move_joints(&tray.carry, now),
+        }
+    }
+
+    /// Advances: starts the current stage's skill, or polls it and moves to the next stage.
+    pub fn poll(&mut self, arm: &mut dyn ArmPort, tray: &TrayGeometry, now: Duration) -> UnloadProgress {
+        if !self.started {
+            if let Err(fault) = self.start(arm, tray, now) {
+                return UnloadProgress::Failed(UnloadFailure::Arm(fault));
+            }
+            self.started = true;
+            return UnloadProgress::Busy(self.stage);
+        }
+        match arm.poll(now) {
+            Err(fault) => UnloadProgress::Failed(UnloadFailure::Arm(fault)),
+            Ok(SkillStatus::Running) => UnloadProgress::Busy(self.stage),
+            Ok(SkillStatus::Done { object_held }) => {
+                if self.stage == Stage::Grasp && !object_held {
+                    return UnloadProgress::Failed(UnloadFailure::NothingInSlot);
+                }
+                match self.stage.next() {
+                    None => UnloadProgress::Placed,
+                    Some(next) => {
+                        self.stage = next;
+                        self.started = false;
+                        // Start the next skill in the same cycle.
+                        self.poll(arm, tray, now)
+                    }
+                }
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A fake arm: every skill takes `cycles` polls; records what it was asked.
+    struct FakeArm {
+        cycles: u32,
+        left: u32,
+        holding_object: bool,
+        slot_has_object: bool,
+        log: Vec<String>,
+        fault_at: Option<usize>,
+    }
+
+    impl ArmPort for FakeArm {
+        fn start_move_joints(&mut self, q: &Joints, _now: Duration) -> Result<(), ArmFault> {
+            if self.fault_at == Some(self.log.len()) {
+                return Err(ArmFault::ProtectiveStop);
+            }
+            self.log.push(format!("move {:.2}", q[0]));
+            self.left = self.cycles;
+            Ok(())
+        }
+        fn start_gripper(&mut self, close: bool, _now: Duration) -> Result<(), ArmFault> {
+            self.log.push(if close { "close" } else { "open" }.into());
+            self.holding_object = close && self.slot_has_object;
+            self.left = self.cycles;
+            Ok(())
+        }
+        fn poll(&mut self, _now: Duration) -> Result<SkillStatus, ArmFault> {
+            if self.left > 0 {
+                self.left -= 1;
+                return Ok(SkillStatus::Running);
+            }
+            Ok(SkillStatus::Done {
+                object_held: self.holding_object,
+            })
+        }
+    }
+
+    fn tray() -> TrayGeometry {
+        TrayGeometry {
+            pick: vec![[1.0; 6]; 3],
+            pick_above: vec![[2.0; 6]; 3],
+            carry: [3.0; 6],
+        }
+    }
+
+    fn joints() -> PlaceJoints {
+        PlaceJoints {
+            place: [4.0; 6],
+            above: [5.0; 6],
+        }
+    }
+
+    fn run(arm: &mut FakeArm) -> UnloadProgress {
+        let mut seq = UnloadSequence::new(1, joints());
+        let tray = tray();
+        for k in 0..1000u64 {
+            match seq.poll(arm, &tray, Duration::from_millis(2 * k)) {
+                UnloadProgress::Busy(_) => {}
+                done => return done,
+            }
+        }
+        panic!("never finished");
+    }
+
+    #[test]
+    fn a_successful_unload_runs_every_stage_in_order() {
+        let mut arm = FakeArm {
+            cycles: 3,
+            left: 0,
+            holding_object: false,
+            slot_has_object: true,
+            log: Vec::new(),
+            fault_at: None,
+        };
+        assert_eq!(run(&mut arm), UnloadProgress::Placed);
+        assert_eq!(
+            arm.log,
+            [
+                "open", "move 2.00", "move 1.00", "close", "move 2.00", "move 5.00", "move 4.00",
+                "open", "move 5.00", "move 3.00"
+            ]
+        );
+    }
+
+    #[test]
+    fn an_empty_slot_and_an_arm_fault_fail_the_unload() {
+        let mut empty = FakeArm {
+            cycles: 1,
+            left: 0,
+            holding_object: false,
+            slot_has_object: false,
+            log: Vec::new(),
+            fault_at: None,
+        };
+        assert_eq!(
+            run(&mut empty),
+            UnloadProgress::Failed(UnloadFailure::NothingInSlot)
+        );
+        let mut faulty = FakeArm {
+            cycles: 1,
+            left: 0,
+            holding_object: false,
+            slot_has_object: true,
+            log: Vec::new(),
+            fault_at: Some(5),
+        };
+        assert_eq!(
+            run(&mut faulty),
+            UnloadProgress::Failed(UnloadFailure::Arm(ArmFault::ProtectiveStop))
+        );
+    }
+
+    #[test]
+    fn the_default_tray_is_reachable_with_the_default_mount() {
+        let cfg = PlaceConfig::default();
+        let tray = solve_tray(&cfg, &default_tray_slots()).expect("tray reachable");
+        assert_eq!(tray.pick.len(), 3);
+    }
+}

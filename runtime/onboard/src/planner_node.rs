@@ -1,0 +1,722 @@
+//! The perception and planning node (`grop-planner`): camera frame -> Psi's views cut by the
+//! frame's metric header -> Psi -> GROP (or a baseline) -> `plan/task` and `heatmaps`.
+//!
+//! It is a separate process so that a slow plan never delays the executive's control loops. Its
+//! loop is `loop { now = clock.now(); poll everything non-blocking; clock.sleep_until(next) }`
+//! with a 10 ms period on the runtime clock ([`grop_clock::Clock`]), so in HIL it runs in
+//! lock-step with the simulated world (a long plan simply holds the simulated clock still).
+//!
+//! Per cycle ([`PlannerNode::step`]):
+//! * keeps the newest `camera/frame` (a borrowed shared-memory sample, no copy);
+//! * answers the newest `plan/request` once a frame is there (older unanswered requests are
+//!   superseded): for every (object, side) it cuts the 64 x 32 view out of the frame
+//!   (`world::camera::cut_view`), runs Psi on all of them in one batch (`h = Psi(IM)`, eq. 2),
+//!   builds the task problem (obstacle-free cells from the map, navigation costs `C` from the
+//!   occupancy grid built once at start), lets the selected method choose the plan
+//!   (GROP: argmax of `U = R F - C`, eq. 1, with `F` per location in closed form, eq. 4) and
+//!   publishes it as a `TaskPlanMsg` (Navigate to the station + Load, then Navigate + Unload per
+//!   object) with the `HeatmapsMsg` it came from;
+//! * publishes a `HeartbeatMsg` (role Planner) every 100 ms of clock time.
+//!
+//! What a request plans:
+//! * `MissionStart`: the objects of `remaining_mask` (all of the map's targets when 0) from the
+//!   request's pose (the planner's start is the pose, not the map's `robot_start`); the seed is
+//!   the deployment's, so the plan equals `Planner::plan` on `TaskProblem::from_world` for the
+//!   same scene up to the differences between cut and rendered crops.
+//! * `UnloadFailed` with [`RetryPolicy::None`] (the paper: no retry): the remainder of the current
+//!   plan without the failed object, in the same order with the same goals; objects already on
+//!   board need no station visit. No new frame or Psi run. (Without a current plan, e.g. after a
+//!   restart, it plans the remaining objects minus the failed one as below.)
+//! * `UnloadFailed` with [`RetryPolicy::Replan`], and `SceneChanged` / `LegFailed` with either
+//!   policy: a new plan over `remaining_mask` from the request's pose with the newest frame. The
+//!   planner's domain always loads at the station first; when every remaining object is already on
+//!   board the station is moved onto the pose, which makes that leg free, so the choice is exactly
+//!   the optimum without a station visit, and no station steps are emitted. The planner cannot
+//!   exclude the goal that just failed: the replan draws its goals with a seed mixed with the
+//!   request id, so Smp draws anew rather than repeating the failed draw.
+
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+
+use grop_clock::Clock;
+use grop_ipc::{
+    CameraFrameMsg, HeartbeatMsg, HeatmapsMsg, IpcNode, MAX_TASK_STEPS, MessageError, NodeError,
+    PortError, ProcessRole, PublishError, ReceiveError, Received, ReplanReason, ReplanRequestMsg,
+    TableSide, TaskPlanMsg, TaskStep, TaskStepKind, TopicPublisher, TopicSubscriber,
+};
+use planner::costs::{GridTravelTime, TravelTime};
+use planner::feasibility::{
+    FcnEvaluator, FeasibilityError, FeasibilityEvaluator, FeasibilityQuery,
+};
+use planner::methods::{PlanError, PlannedTask, Planner, PlannerConfig, TaskMotionPlanner};
+use planner::problem::{TaskProblem, side_of_location};
+use planner::task::{MAX_OBJECTS, location_index};
+use world::camera::{CameraError, FrameLayout, OverheadCamera, PixelFormat, cut_view};
+use world::nav::OccupancyGrid;
+use world::view::CROP_CELLS;
+use world::{Heatmap, RobotConfig, Scene, Side};
+
+use crate::deployment::{Deployment, PlannerSettings, RetryPolicy};
+
+/// Rank of the planner among the participants of a simulated clock.
+pub const PLANNER_CLOCK_RANK: u32 = 10;
+/// Period of the node's loop.
+pub const CYCLE: Duration = Duration::from_millis(10);
+/// Period of the heartbeat.
+pub const HEARTBEAT_PERIOD: Duration = Duration::from_millis(100);
+
+/// Why the node could not start or run.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum PlannerNodeError {
+    /// The map/task scene file.
+    #[error("map file {path}: {source}")]
+    Map {
+        /// The file.
+        path: std::path::PathBuf,
+        /// Why.
+        source: world::SceneError,
+    },
+    /// The robot file.
+    #[error("robot file: {0}")]
+    Robot(#[from] world::RobotError),
+    /// The model file.
+    #[error("model {path}: {source}")]
+    Model {
+        /// The file.
+        path: std::path::PathBuf,
+        /// Why.
+        source: fcn_infer::ModelLoadError,
+    },
+    /// The map's targets do not fit the planner.
+    #[error("the map has {0} targets; the planner node plans 1..={MAX_OBJECTS}")]
+    TargetCount(usize),
+    /// The iceoryx2 node.
+    #[error(transparent)]
+    Node(#[from] NodeError),
+    /// A publisher or subscriber.
+    #[error(transparent)]
+    Port(#[from] PortError),
+    /// Receiving.
+    #[error(transparent)]
+    Receive(#[from] ReceiveError),
+}
+
+/// Why one request could not be answered (logged; the node goes on).
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum RequestError {
+    /// The request or the frame does not decode.
+    #[error("message: {0}")]
+    Message(#[from] MessageError),
+    /// A view could not be cut from the frame.
+    #[error("cutting the {side} view of object {object}: {source}")]
+    Cut {
+        /// Object index in the map.
+        object: usize,
+        /// Side.
+        side: Side,
+        /// Why.
+        source: CameraError,
+    },
+    /// Psi failed.
+    #[error("Psi: {0}")]
+    Feasibility(#[from] FeasibilityError),
+    /// The planner failed.
+    #[error("planner: {0}")]
+    Plan(#[from] PlanError),
+    /// More objects than the planner takes.
+    #[error("{0} objects to plan; at most {MAX_OBJECTS}")]
+    TooManyObjects(usize),
+    /// The plan or heatmaps do not fit their message.
+    #[error("publishing: {0}")]
+    Publish(#[from] PublishError),
+}
+
+/// What a cycle did with a request.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Answer {
+    /// The request answered.
+    pub request_id: u64,
+    /// The plan published.
+    pub plan_id: u64,
+    /// Steps of the plan.
+    pub step_count: usize,
+    /// Whether it was planned anew (Psi + planner) or is the remainder of the current plan.
+    pub replanned: bool,
+}
+
+/// The node: its ports, the static knowledge (map, robot, occupancy grid), Psi and the planner.
+pub struct PlannerNode {
+    frames: TopicSubscriber<CameraFrameMsg>,
+    requests: TopicSubscriber<ReplanRequestMsg>,
+    plans: TopicPublisher<TaskPlanMsg>,
+    heatmaps: TopicPublisher<HeatmapsMsg>,
+    health: TopicPublisher<HeartbeatMsg>,
+    newest_frame: Option<Received<CameraFrameMsg>>,
+    pending: Option<ReplanRequestMsg>,
+    scene: Scene,
+    robot: RobotConfig,
+    grid: OccupancyGrid,
+    psi: Box<dyn FeasibilityEvaluator>,
+    planner: Planner,
+    retry: RetryPolicy,
+    seed: u64,
+    /// Steps of the plan published last (to cut the remainder from).
+    current: Option<CurrentPlan>,
+    plan_counter: u64,
+    heartbeat_seq: u64,
+    next_heartbeat: Option<Duration>,
+    overruns: u64,
+    failures: u64,
+    last_error: Option<String>,
+    crops: Vec<[u8; CROP_CELLS]>,
+    heat_buffers: Vec<Heatmap>,
+    // Last: the ports above must be dropped before their node.
+    _ipc: IpcNode,
+}
+
+struct CurrentPlan {
+    source_frame_id: u64,
+    steps: Vec<TaskStep>,
+}
+
+impl PlannerNode {
+    /// Starts the node a deployment describes: loads the map, the robot and the model, builds the
+    /// occupancy grid, opens the ports in the deployment's namespace.
+    pub fn from_deployment(deployment: &Deployment) -> Result<Self, PlannerNodeError> {
+        let scene = deployment
+            .load_scene()
+            .map_err(|source| PlannerNodeError::Map {
+                path: deployment.map.clone(),
+                source,
+            })?;
+        let robot = deployment.load_robot()?;
+        let psi =
+            FcnEvaluator::load(&deployment.model).map_err(|source| PlannerNodeError::Model {
+                path: deployment.model.clone(),
+                source,
+            })?;
+        Self::new(
+            &deployment.namespace,
+            scene,
+            robot,
+            Box::new(psi),
+            deployment.planner,
+            deployment.seed,
+        )
+    }
+
+    /// A node on `namespace` with the given map, robot, Psi and planner settings.
+    pub fn new(
+        namespace: &str,
+        scene: Scene,
+        robot: RobotConfig,
+        psi: Box<dyn FeasibilityEvaluator>,
+        settings: PlannerSettings,
+        seed: u64,
+    ) -> Result<Self, PlannerNodeError> {
+        let n = scene.targets.len();
+        if n == 0 || n > MAX_OBJECTS {
+            return Err(PlannerNodeError::TargetCount(n));
+        }
+        let grid = OccupancyGrid::from_scene(&scene, &robot);
+        let config = PlannerConfig {
+            free_goals_only: !settings.paper_smp,
+            ..PlannerConfig::for_robot(&robot)
+        };
+        let ipc = IpcNode::new(namespace, "grop-planner")?;
+        let node = Self {
+            frames: ipc.subscriber()?,
+            requests: ipc.subscriber()?,
+            plans: ipc.publisher()?,
+            heatmaps: ipc.publisher()?,
+            health: ipc.publisher()?,
+            newest_frame: None,
+            pending: None,
+            planner: Planner::new(settings.method, config),
+            retry: settings.retry,
+            seed,
+            scene,
+            robot,
+            grid,
+            psi,
+            current: None,
+            plan_counter: 0,
+            heartbeat_seq: 0,
+            next_heartbeat: None,
+            overruns: 0,
+            failures: 0,
+            last_error: None,
+            crops: vec![[0; CROP_CELLS]; 2 * MAX_OBJECTS],
+            heat_buffers: vec![Heatmap::zeros(); 2 * MAX_OBJECTS],
+            _ipc: ipc,
+        };
+        log::info!(
+            "planner node on `{namespace}`: {} with {} targets, retry {:?}, seed {seed}",
+            node.planner.kind.name(),
+            n,
+            node.retry
+        );
+        Ok(node)
+    }
+
+    /// The map and task.
+    pub fn scene(&self) -> &Scene {
+        &self.scene
+    }
+
+    /// Loop overruns counted so far.
+    pub fn overruns(&self) -> u64 {
+        self.overruns
+    }
+
+    /// Requests that could not be answered so far, and the last reason.
+    pub fn failures(&self) -> (u64, Option<&str>) {
+        (self.failures, self.last_error.as_deref())
+    }
+
+    /// Runs the loop until `stop` is set or the clock is lost: every [`CYCLE`] of clock time one
+    /// [`step`](Self::step), absolute deadlines (a late cycle does not shift the later ones;
+    /// missed cycles are skipped and counted as overruns).
+    pub fn run(&mut self, clock: &dyn Clock, stop: &AtomicBool) -> Result<(), PlannerNodeError> {
+        let mut next = clock.now();
+        while !stop.load(Ordering::Relaxed) {
+            if clock.is_lost() {
+                log::warn!("the clock is lost; the planner node stops");
+                break;
+            }
+            let now = clock.now();
+            self.step(now)?;
+            next += CYCLE;
+            let after = clock.now();
+            while next <= after {
+                next += CYCLE;
+                self.overruns += 1;
+            }
+            clock.sleep_until(next);
+        }
+        Ok(())
+    }
+
+    /// One cycle at clock time `now`: take the newest frame and request, answer the request if a
+    /// frame is there, send the heartbeat when due. Returns the answer if one was published.
+    /// Failures to answer are logged and counted, not returned (the node keeps serving).
+    pub fn step(&mut self, now: Duration) -> Result<Option<Answer>, PlannerNodeError> {
+        while let Some(frame) = self.frames.try_recv()? {
+            self.newest_frame = Some(frame);
+        }
+        while let Some(request) = self.requests.try_recv()? {
+            if let Some(old) = self.pending.replace(*request) {
+                log::warn!(
+                    "request {} superseded by {} before it was answered",
+                    old.request_id,
+                    request.request_id
+                );
+            }
+        }
+        let mut answer = None;
+        let can_answer = self.pending.is_some_and(|r| {
+            self.newest_frame.is_some()
+                || (r.reason() == Ok(ReplanReason::UnloadFailed)
+                    && self.retry == RetryPolicy::None
+                    && self.current.is_some())
+        });
+        if can_answer {
+            if let Some(request) = self.pending.take() {
+                match self.answer(&request, now) {
+                    Ok(a) => {
+                        log::info!(
+                            "answered request {} with plan {} ({} steps, {})",
+                            a.request_id,
+                            a.plan_id,
+                            a.step_count,
+                            if a.replanned { "planned" } else { "remainder" }
+                        );
+                        answer = Some(a);
+                    }
+                    Err(error) => {
+                        self.failures += 1;
+                        log::error!("request {}: {error}", request.request_id);
+                        self.last_error = Some(error.to_string());
+                    }
+                }
+            }
+        }
+        if self.next_heartbeat.is_none_or(|due| now >= due) {
+            self.send_heartbeat(now);
+            let due = self.next_heartbeat.unwrap_or(now) + HEARTBEAT_PERIOD;
+            self.next_heartbeat = Some(if due <= now {
+                now + HEARTBEAT_PERIOD
+            } else {
+                due
+            });
+        }
+        for result in [
+            self.plans.serve_late_subscribers(),
+            self.heatmaps.serve_late_subscribers(),
+        ] {
+            if let Err(error) = result {
+                log::warn!("{error}");
+            }
+        }
+        Ok(answer)
+    }
+
+    fn send_heartbeat(&mut self, now: Duration) {
+        self.heartbeat_seq += 1;
+        let (seq, overruns) = (self.heartbeat_seq, self.overruns);
+        let sent = self.health.publish_with(|beat| {
+            beat.seq = seq;
+            beat.stamp_ns = duration_ns(now);
+            beat.set_role(ProcessRole::Planner);
+            beat.pid = std::process::id();
+            beat.overruns = overruns;
+        });
+        if let Err(error) = sent {
+            log::warn!("heartbeat: {error}");
+        }
+    }
+
+    fn answer(
+        &mut self,
+        request: &ReplanRequestMsg,
+        now: Duration,
+    ) -> Result<Answer, RequestError> {
+        let reason = request.reason()?;
+        let n = self.scene.targets.len();
+        let all = if n >= 64 { u64::MAX } else { (1u64 << n) - 1 };
+        let mut remaining = request.remaining_mask & all;
+        if remaining == 0 && reason == ReplanReason::MissionStart {
+            remaining = all;
+        }
+        let on_board = request.on_board_mask & remaining;
+        let pose = request.pose;
+        if !pose.iter().all(|v| v.is_finite()) {
+            return Err(MessageError::NotFinite {
+                message: "ReplanRequestMsg",
+                field: "pose",
+                index: 0,
+            }
+            .into());
+        }
+        let failed_bit = if (request.failed_object as usize) < n {
+            1u64 << request.failed_object
+        } else {
+            0
+        };
+        match (reason, self.retry) {
+            (ReplanReason::UnloadFailed, RetryPolicy::None) => {
+                let left = remaining & !failed_bit;
+                if self.current.is_some() {
+                    self.publish_remainder(request, left, on_board & left, now)
+                } else {
+                    self.plan_and_publish(request, left, on_board & left, now)
+                }
+            }
+            _ => self.plan_and_publish(request, remaining, on_board, now),
+        }
+    }
+
+    /// Cut + Psi + planner over the objects of `objects_mask` from the request's pose.
+    fn plan_and_publish(
+        &mut self,
+        request: &ReplanRequestMsg,
+        objects_mask: u64,
+        on_board: u64,
+        now: Duration,
+    ) -> Result<Answer, RequestError> {
+        let started = Instant::now();
+        let objects: Vec<usize> = (0..self.scene.targets.len())
+            .filter(|i| objects_mask & (1 << i) != 0)
+            .collect();
+        if objects.len() > MAX_OBJECTS {
+            return Err(RequestError::TooManyObjects(objects.len()));
+        }
+        if objects.is_empty() {
+            let frame_id = self.newest_frame.as_ref().map_or(0, |f| f.header.frame_id);
+            return self.publish_plan(request, frame_id, &[], (0.0, 0.0, 0.0), started, now);
+        }
+        let Some(frame) = self.newest_frame.as_ref() else {
+            // `step` answers only with a frame; keep the invariant visible.
+            return Err(MessageError::NotFinite {
+                message: "CameraFrameMsg",
+                field: "none received",
+                index: 0,
+            }
+            .into());
+        };
+        let header = frame.header;
+        let pixels = frame.image()?;
+        let layout = FrameLayout {
+            camera: OverheadCamera {
+                width_px: header.width_px,
+                height_px: header.height_px,
+                metres_per_px: header.metres_per_px,
+                left_x_m: header.left_x_m,
+                top_y_m: header.top_y_m,
+            },
+            format: match header.pixel_format()? {
+                grop_ipc::PixelFormat::Rgb8 => PixelFormat::Rgb8,
+                grop_ipc::PixelFormat::Mono8 => PixelFormat::Mono8,
+            },
+            row_stride_bytes: header.row_stride_bytes as usize,
+        };
+        let targets: Vec<[f64; 3]> = objects
+            .iter()
+            .map(|&i| self.scene.targets[i].as_array())
+            .collect();
+        let m = 2 * objects.len();
+        for (i, crop) in self.crops[..m].iter_mut().enumerate() {
+            let side = side_of_location(i);
+            cut_view(pixels, &layout, targets[i / 2][0], side, crop).map_err(|source| {
+                RequestError::Cut {
+                    object: objects[i / 2],
+                    side,
+                    source,
+                }
+            })?;
+        }
+        let queries: Vec<FeasibilityQuery<'_>> = self.crops[..m]
+            .iter()
+            .enumerate()
+            .map(|(i, crop)| FeasibilityQuery {
+                scene: &self.scene,
+                robot: &self.robot,
+                target: targets[i / 2],
+                side: side_of_location(i),
+                crop,
+            })
+            .collect();
+        let heatmaps = &mut self.heat_buffers[..m];
+        self.psi.evaluate(&queries, heatmaps)?;
+        let mut problem = TaskProblem::from_heatmaps(&self.scene, &self.robot, &targets, heatmaps);
+        let pose_xy = (request.pose[0], request.pose[1]);
+        problem.start_xy = pose_xy;
+        let all_on_board = objects.iter().all(|&o| on_board & (1 << o) != 0);
+        if all_on_board {
+            problem.station_xy = pose_xy;
+        }
+        let seed = match request.reason()? {
+            ReplanReason::MissionStart => self.seed,
+            _ => world::generate::mix_seed(self.seed, 0x7265_706c, request.request_id),
+        };
+        let mut travel = GridTravelTime::new(&self.grid, self.robot.speed_mps);
+        let decision = self.planner.plan(&problem, &mut travel, seed)?;
+        let load_mask = if all_on_board {
+            0
+        } else {
+            objects_mask & !on_board
+        };
+        let steps = self.steps_of(
+            &decision,
+            &objects,
+            &targets,
+            load_mask,
+            pose_xy,
+            &mut travel,
+        );
+        let frame_id = header.frame_id;
+        let totals = (decision.feasibility, decision.cost_s, decision.utility);
+        // Heatmaps first: a reader of the plan finds the heatmaps it came from.
+        let heatmaps = &self.heat_buffers[..m];
+        self.heatmaps.publish_with(|msg| {
+            msg.stamp_ns = duration_ns(now);
+            msg.source_frame_id = frame_id;
+            msg.count = m as u32;
+            for (i, (slot, h)) in msg.locations.iter_mut().zip(heatmaps).enumerate() {
+                slot.object_index = objects[i / 2] as u32;
+                slot.side = i32::from(side_of_location(i).sign());
+                slot.target_m = targets[i / 2];
+                slot.feasibility = decision.locations[i].feasibility;
+                slot.values.copy_from_slice(h.values());
+            }
+        })?;
+        log::debug!("{}", decision.explain(3));
+        self.publish_plan(request, frame_id, &steps, totals, started, now)
+            .map(|a| Answer {
+                replanned: true,
+                ..a
+            })
+    }
+
+    /// The plan's steps: station visit and load (if anything must be loaded), then per unload
+    /// the navigation to its goal (leg cost from the grid) and the unload.
+    fn steps_of(
+        &self,
+        decision: &PlannedTask,
+        objects: &[usize],
+        targets: &[[f64; 3]],
+        load_mask: u64,
+        start_xy: (f64, f64),
+        travel: &mut dyn TravelTime,
+    ) -> Vec<TaskStep> {
+        let no_path_s = self.planner.config.no_path_cost_s;
+        let mut leg =
+            |from: (f64, f64), to: (f64, f64)| travel.travel_time_s(from, to).unwrap_or(no_path_s);
+        let mut steps = Vec::with_capacity(2 + 2 * objects.len());
+        let mut at = start_xy;
+        if load_mask != 0 {
+            let station = (
+                self.scene.loading_station.x_m,
+                self.scene.loading_station.y_m,
+            );
+            steps.push(TaskStep::navigate(
+                station.0,
+                station.1,
+                self.station_yaw_rad(),
+                leg(at, station),
+            ));
+            steps.push(TaskStep::load(load_mask, station.0, station.1));
+            at = station;
+        }
+        for u in &decision.plan.unloads {
+            let goal = decision.goal_of(u);
+            let side = table_side(u.side);
+            let mut nav = TaskStep::navigate(goal.xy.0, goal.xy.1, goal.yaw_rad, leg(at, goal.xy));
+            nav.side = i32::from(u.side.sign());
+            steps.push(nav);
+            steps.push(TaskStep::unload(
+                objects[u.object] as u32,
+                side,
+                targets[u.object],
+                [goal.xy.0, goal.xy.1, goal.yaw_rad],
+                decision.locations[location_index(u.object, u.side)].feasibility,
+            ));
+            at = goal.xy;
+        }
+        steps
+    }
+
+    /// Heading at the station: facing the loading table.
+    fn station_yaw_rad(&self) -> f64 {
+        let (s, t) = (&self.scene.loading_station, &self.scene.loading_table);
+        (t.center_y_m - s.y_m).atan2(t.center_x_m - s.x_m)
+    }
+
+    /// The paper's no-retry answer: the current plan's unloads of the objects in `left`, in
+    /// order, from the request's pose; a station visit only for objects not on board.
+    fn publish_remainder(
+        &mut self,
+        request: &ReplanRequestMsg,
+        left: u64,
+        on_board: u64,
+        now: Duration,
+    ) -> Result<Answer, RequestError> {
+        let started = Instant::now();
+        let Some(current) = self.current.as_ref() else {
+            return self.plan_and_publish(request, left, on_board, now);
+        };
+        let frame_id = current.source_frame_id;
+        let mut pairs: Vec<(TaskStep, TaskStep)> = Vec::new();
+        for w in current.steps.windows(2) {
+            if w[1].kind() == Ok(TaskStepKind::Unload)
+                && w[1].object().is_ok_and(|o| left & (1 << o) != 0)
+            {
+                pairs.push((w[0], w[1]));
+            }
+        }
+        let mut travel = GridTravelTime::new(&self.grid, self.robot.speed_mps);
+        let no_path_s = self.planner.config.no_path_cost_s;
+        let mut at = (request.pose[0], request.pose[1]);
+        let mut steps = Vec::with_capacity(2 + 2 * pairs.len());
+        let to_load = left & !on_board;
+        if to_load != 0 {
+            let station = (
+                self.scene.loading_station.x_m,
+                self.scene.loading_station.y_m,
+            );
+            let cost = travel.travel_time_s(at, station).unwrap_or(no_path_s);
+            steps.push(TaskStep::navigate(
+                station.0,
+                station.1,
+                self.station_yaw_rad(),
+                cost,
+            ));
+            steps.push(TaskStep::load(to_load, station.0, station.1));
+            at = station;
+        }
+        let (mut feasibility, mut cost_s) = (0.0, 0.0);
+        for (mut nav, unload) in pairs {
+            nav.travel_cost_s = travel
+                .travel_time_s(at, (nav.x_m, nav.y_m))
+                .unwrap_or(no_path_s);
+            at = (nav.x_m, nav.y_m);
+            feasibility += unload.feasibility;
+            steps.push(nav);
+            steps.push(unload);
+        }
+        for s in &steps {
+            cost_s += s.travel_cost_s;
+        }
+        let utility = self.planner.config.success_bonus_r * feasibility - cost_s;
+        self.publish_plan(
+            request,
+            frame_id,
+            &steps,
+            (feasibility, cost_s, utility),
+            started,
+            now,
+        )
+    }
+
+    fn publish_plan(
+        &mut self,
+        request: &ReplanRequestMsg,
+        frame_id: u64,
+        steps: &[TaskStep],
+        (feasibility, cost_s, utility): (f64, f64, f64),
+        started: Instant,
+        now: Duration,
+    ) -> Result<Answer, RequestError> {
+        if steps.len() > MAX_TASK_STEPS {
+            return Err(MessageError::CountTooLarge {
+                message: "TaskPlanMsg",
+                field: "steps",
+                count: steps.len() as u64,
+                capacity: MAX_TASK_STEPS as u64,
+            }
+            .into());
+        }
+        self.plan_counter += 1;
+        let plan_id = self.plan_counter;
+        let reward = self.planner.config.success_bonus_r;
+        let object_count = self.scene.targets.len() as u32;
+        let decision_us = started.elapsed().as_micros().min(u128::from(u64::MAX)) as u64;
+        self.plans.publish_with(|msg| {
+            msg.plan_id = plan_id;
+            msg.stamp_ns = duration_ns(now);
+            msg.source_frame_id = frame_id;
+            msg.answers_request = request.request_id;
+            msg.utility = utility;
+            msg.feasibility = feasibility;
+            msg.cost_s = cost_s;
+            msg.reward = reward;
+            msg.object_count = object_count;
+            msg.decision_us = decision_us;
+            // Cannot fail: checked above.
+            let _ = msg.set_steps(steps);
+        })?;
+        self.current = Some(CurrentPlan {
+            source_frame_id: frame_id,
+            steps: steps.to_vec(),
+        });
+        Ok(Answer {
+            request_id: request.request_id,
+            plan_id,
+            step_count: steps.len(),
+            replanned: false,
+        })
+    }
+}
+
+fn table_side(side: Side) -> TableSide {
+    match side {
+        Side::Near => TableSide::Near,
+        Side::Far => TableSide::Far,
+    }
+}
+
+fn duration_ns(t: Duration) -> u64 {
+    t.as_nanos().min(u128::from(u64::MAX)) as u64
+}

@@ -1,0 +1,464 @@
+//! The planner node in-process: a rendered camera frame and replan requests go in over iceoryx2
+//! (unique namespace per test), the task plan, heatmaps and heartbeats come out.
+
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, AtomicU32, AtomicU64, Ordering};
+use std::time::Duration;
+
+use grop_ipc::{
+    CameraFrameHeader, CameraFrameMsg, HeartbeatMsg, HeatmapsMsg, IpcNode, PixelFormat,
+    ProcessRole, ReplanReason, ReplanRequestMsg, TaskPlanMsg, TaskStep, TaskStepKind,
+    TopicPublisher, TopicSubscriber,
+};
+use grop_onboard::deployment::{PlannerSettings, RetryPolicy};
+use grop_onboard::planner_node::{Answer, PlannerNode};
+use planner::costs::GridTravelTime;
+use planner::feasibility::FcnEvaluator;
+use planner::methods::{MethodKind, Planner, PlannerConfig, TaskMotionPlanner};
+use planner::problem::TaskProblem;
+use world::camera::{OverheadCamera, render_frame};
+use world::{RobotConfig, Scene, Side};
+
+static COUNTER: AtomicU32 = AtomicU32::new(0);
+
+/// A namespace no other test uses: pid + counter + test name.
+fn unique_namespace(test: &str) -> String {
+    format!(
+        "test-{}-{}-{test}",
+        std::process::id(),
+        COUNTER.fetch_add(1, Ordering::Relaxed)
+    )
+}
+
+fn psi() -> FcnEvaluator {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../models/psi-fcn.onnx");
+    FcnEvaluator::load(&path).unwrap()
+}
+
+/// The other side of the node: camera, executive.
+struct Peers {
+    _node: IpcNode,
+    camera: TopicPublisher<CameraFrameMsg>,
+    requests: TopicPublisher<ReplanRequestMsg>,
+    plans: TopicSubscriber<TaskPlanMsg>,
+    heatmaps: TopicSubscriber<HeatmapsMsg>,
+    health: TopicSubscriber<HeartbeatMsg>,
+}
+
+fn peers(namespace: &str) -> Peers {
+    let node = IpcNode::new(namespace, "peers").unwrap();
+    Peers {
+        camera: node.publisher().unwrap(),
+        requests: node.publisher().unwrap(),
+        plans: node.subscriber().unwrap(),
+        heatmaps: node.subscriber().unwrap(),
+        health: node.subscriber().unwrap(),
+        _node: node,
+    }
+}
+
+fn publish_frame(camera: &TopicPublisher<CameraFrameMsg>, scene: &Scene, frame_id: u64) {
+    let cam = OverheadCamera::fitting_room(scene);
+    let mut header = CameraFrameHeader {
+        frame_id,
+        stamp_ns: 1,
+        width_px: cam.width_px,
+        height_px: cam.height_px,
+        pixel_format: 0,
+        row_stride_bytes: cam.width_px * 3,
+        metres_per_px: cam.metres_per_px,
+        left_x_m: cam.left_x_m,
+        top_y_m: cam.top_y_m,
+    };
+    header.set_pixel_format(PixelFormat::Rgb8);
+    camera
+        .publish_with(|frame| {
+            let pixels = frame.image_mut(header).unwrap();
+            render_frame(scene, &cam, pixels).unwrap();
+        })
+        .unwrap();
+}
+
+fn request(id: u64, reason: ReplanReason, pose: [f64; 3], remaining: u64) -> ReplanRequestMsg {
+    let mut r = ReplanRequestMsg {
+        request_id: id,
+        stamp_ns: 0,
+        reason: 0,
+        failed_object: 0,
+        remaining_mask: remaining,
+        on_board_mask: 0,
+        pose,
+        failed_side: 0,
+        reserved: 0,
+        failed_goal_m: [0.0; 2],
+    };
+    r.set_reason(reason);
+    r
+}
+
+/// Steps the node (10 ms of clock time per step) until it answers.
+fn step_until_answer(node: &mut PlannerNode, now: &mut Duration) -> Answer {
+    for _ in 0..200 {
+        *now += Duration::from_millis(10);
+        if let Some(answer) = node.step(*now).unwrap() {
+            return answer;
+        }
+    }
+    panic!("no answer; failures {:?}", node.failures());
+}
+
+fn newest<T: grop_ipc::Topic + Copy>(sub: &TopicSubscriber<T>) -> T {
+    for _ in 0..100 {
+        if let Some(m) = sub.latest().unwrap() {
+            return *m;
+        }
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    panic!("nothing on {}", sub.service());
+}
+
+fn kinds(steps: &[TaskStep]) -> Vec<TaskStepKind> {
+    steps.iter().map(|s| s.kind().unwrap()).collect()
+}
+
+/// (object, side) of each unload, in order.
+fn unloads(steps: &[TaskStep]) -> Vec<(usize, Side)> {
+    steps
+        .iter()
+        .filter(|s| s.kind() == Ok(TaskStepKind::Unload))
+        .map(|s| {
+            let side = if s.side == 1 { Side::Near } else { Side::Far };
+            (s.object().unwrap(), side)
+        })
+        .collect()
+}
+
+fn start_pose(scene: &Scene) -> [f64; 3] {
+    [
+        scene.robot_start.x_m,
+        scene.robot_start.y_m,
+        scene.robot_start.yaw_rad,
+    ]
+}
+
+/// A mission start: the plan's structure, its F against the heatmaps, and the same choice as
+/// `Planner::plan` on `TaskProblem::from_world` (rendered crops) for several scenes and seeds.
+#[test]
+fn mission_start_plans_like_the_offline_planner() {
+    let robot = RobotConfig::default();
+    let mut offline_psi = psi();
+    let mut same_plans = 0;
+    let cases = [(1u64, 7u64), (2, 11), (3, 42), (4, 5), (5, 99)];
+    for &(scene_seed, seed) in &cases {
+        let scene = world::generate::evaluation_scene(scene_seed, 20, 3);
+        let ns = unique_namespace("mission");
+        let settings = PlannerSettings::default();
+        let mut node = PlannerNode::new(
+            &ns,
+            scene.clone(),
+            robot.clone(),
+            Box::new(psi()),
+            settings,
+            seed,
+        )
+        .unwrap();
+        let p = peers(&ns);
+        publish_frame(&p.camera, &scene, 17);
+        p.requests
+            .publish(&request(
+                1,
+                ReplanReason::MissionStart,
+                start_pose(&scene),
+                0b111,
+            ))
+            .unwrap();
+        let mut now = Duration::from_secs(1);
+        let answer = step_until_answer(&mut node, &mut now);
+        assert!(answer.replanned);
+        let plan = newest(&p.plans);
+        let heatmaps = newest(&p.heatmaps);
+        assert_eq!(plan.answers_request, 1);
+        assert_eq!(plan.plan_id, answer.plan_id);
+        assert_eq!(plan.source_frame_id, 17);
+        assert_eq!(heatmaps.source_frame_id, 17);
+        assert_eq!(plan.object_count, 3);
+        let steps = plan.steps().unwrap();
+        use TaskStepKind::{Load, Navigate, Unload};
+        assert_eq!(
+            kinds(steps),
+            [
+                Navigate, Load, Navigate, Unload, Navigate, Unload, Navigate, Unload
+            ]
+        );
+        assert_eq!(steps[1].load_mask, 0b111);
+        assert_eq!(
+            (steps[0].x_m, steps[0].y_m),
+            (scene.loading_station.x_m, scene.loading_station.y_m)
+        );
+        let locations = heatmaps.locations().unwrap();
+        assert_eq!(locations.len(), 6);
+        let mut f_sum = 0.0;
+        for pair in steps[2..].chunks(2) {
+            let (nav, unload) = (pair[0], pair[1]);
+            assert_eq!(nav.side, unload.side);
+            assert_eq!(
+                (nav.x_m, nav.y_m, nav.yaw_rad),
+                (unload.x_m, unload.y_m, unload.yaw_rad)
+            );
+            assert!(nav.travel_cost_s > 0.0);
+            let h = locations
+                .iter()
+                .find(|h| h.object_index == unload.object_index && h.side == unload.side)
+                .unwrap();
+            assert_eq!(
+                h.feasibility, unload.feasibility,
+                "F of the unload = F of its heatmap"
+            );
+            assert_eq!(h.target_m, unload.target_m);
+            f_sum += unload.feasibility;
+        }
+        assert!((plan.feasibility - f_sum).abs() < 1e-9);
+        assert!((plan.utility - (plan.reward * plan.feasibility - plan.cost_s)).abs() < 1e-6);
+        let legs: f64 = steps.iter().map(|s| s.travel_cost_s).sum();
+        assert!(
+            (legs - plan.cost_s).abs() < 1e-6,
+            "legs {legs} vs C {}",
+            plan.cost_s
+        );
+
+        // Offline: rendered crops, the map's start, same seed.
+        let targets: Vec<[f64; 3]> = scene.targets.iter().map(|t| t.as_array()).collect();
+        let problem = TaskProblem::from_world(&scene, &robot, &targets, &mut offline_psi).unwrap();
+        let grid = world::nav::OccupancyGrid::from_scene(&scene, &robot);
+        let mut travel = GridTravelTime::new(&grid, robot.speed_mps);
+        let mut grop = Planner::new(MethodKind::Grop, PlannerConfig::for_robot(&robot));
+        let offline = grop.plan(&problem, &mut travel, seed).unwrap();
+        let offline_unloads: Vec<(usize, Side)> = offline
+            .plan
+            .unloads
+            .iter()
+            .map(|u| (u.object, u.side))
+            .collect();
+        println!(
+            "scene {scene_seed} seed {seed}: node {:?} F {:.4} U {:.2} ({} us) | offline {:?} F {:.4} U {:.2}",
+            unloads(steps),
+            plan.feasibility,
+            plan.utility,
+            plan.decision_us,
+            offline_unloads,
+            offline.feasibility,
+            offline.utility
+        );
+        assert!((plan.feasibility - offline.feasibility).abs() < 0.1);
+        if unloads(steps) == offline_unloads {
+            same_plans += 1;
+        }
+    }
+    // Cut and rendered crops differ by a fraction of a gray level (mean |dF| ~ 0.001); a Smp goal
+    // may land on a neighbouring cell, but the task plan should be the same.
+    assert!(
+        same_plans >= cases.len() - 1,
+        "{same_plans} of {} plans equal",
+        cases.len()
+    );
+}
+
+/// A failed unload, paper policy (no retry): the rest of the current plan without the failed
+/// object, no station visit (everything is on board), same goals; then with `replan`: a fresh
+/// plan from the pose over what is left, the failed object included, no station visit.
+#[test]
+fn failed_unloads_are_answered_by_retry_policy() {
+    let robot = RobotConfig::default();
+    let scene = world::generate::evaluation_scene(8, 20, 3);
+    for retry in [RetryPolicy::None, RetryPolicy::Replan] {
+        let ns = unique_namespace("retry");
+        let settings = PlannerSettings {
+            retry,
+            ..PlannerSettings::default()
+        };
+        let mut node = PlannerNode::new(
+            &ns,
+            scene.clone(),
+            robot.clone(),
+            Box::new(psi()),
+            settings,
+            3,
+        )
+        .unwrap();
+        let p = peers(&ns);
+        publish_frame(&p.camera, &scene, 1);
+        p.requests
+            .publish(&request(
+                1,
+                ReplanReason::MissionStart,
+                start_pose(&scene),
+                0b111,
+            ))
+            .unwrap();
+        let mut now = Duration::from_secs(1);
+        step_until_answer(&mut node, &mut now);
+        let first = newest(&p.plans);
+        let first_steps = first.steps().unwrap().to_vec();
+        let order = unloads(&first_steps);
+        // The first unload fails where the robot stands.
+        let failed = first_steps[3];
+        let mut failure = request(
+            2,
+            ReplanReason::UnloadFailed,
+            [failed.x_m, failed.y_m, failed.yaw_rad],
+            0b111,
+        );
+        failure.failed_object = failed.object_index;
+        failure.failed_side = failed.side;
+        failure.on_board_mask = 0b111;
+        p.requests.publish(&failure).unwrap();
+        let answer = step_until_answer(&mut node, &mut now);
+        let plan = newest(&p.plans);
+        assert_eq!(plan.answers_request, 2);
+        let steps = plan.steps().unwrap();
+        assert!(
+            steps.iter().all(|s| s.kind() != Ok(TaskStepKind::Load)),
+            "everything is on board: no station visit"
+        );
+        match retry {
+            RetryPolicy::None => {
+                assert!(!answer.replanned);
+                assert_eq!(unloads(steps), order[1..].to_vec());
+                assert_eq!(steps, &first_steps[4..]);
+            }
+            RetryPolicy::Replan => {
+                assert!(answer.replanned);
+                let mut objects: Vec<usize> = unloads(steps).iter().map(|u| u.0).collect();
+                objects.sort_unstable();
+                assert_eq!(objects, [0, 1, 2], "the failed object is tried again");
+            }
+        }
+        // Legs are costed from the pose.
+        assert!(steps[0].travel_cost_s > 0.0);
+    }
+}
+
+/// A simulated clock for the loop: `sleep_until` jumps to the deadline, and the test's stop
+/// flag is set when `end` is reached.
+struct JumpClock {
+    now_ns: AtomicU64,
+    end: Duration,
+    stop: Arc<AtomicBool>,
+}
+
+impl grop_clock::Clock for JumpClock {
+    fn now(&self) -> Duration {
+        Duration::from_nanos(self.now_ns.load(Ordering::SeqCst))
+    }
+    fn sleep_until(&self, deadline: Duration) {
+        let ns = deadline.as_nanos() as u64;
+        self.now_ns.fetch_max(ns, Ordering::SeqCst);
+        if deadline >= self.end {
+            self.stop.store(true, Ordering::SeqCst);
+        }
+    }
+}
+
+/// The loop on a simulated clock: one heartbeat per 100 ms of clock time, role Planner.
+#[test]
+fn heartbeats_every_100_ms_of_clock_time() {
+    let scene = world::generate::evaluation_scene(9, 15, 2);
+    let ns = unique_namespace("heartbeat");
+    let mut node = PlannerNode::new(
+        &ns,
+        scene,
+        RobotConfig::default(),
+        Box::new(psi()),
+        PlannerSettings::default(),
+        0,
+    )
+    .unwrap();
+    let p = peers(&ns);
+    let stop = Arc::new(AtomicBool::new(false));
+    let clock = JumpClock {
+        now_ns: AtomicU64::new(5_000_000_000),
+        end: Duration::from_millis(5_995),
+        stop: stop.clone(),
+    };
+    node.run(&clock, &stop).unwrap();
+    let mut beats = Vec::new();
+    while let Some(b) = p.health.try_recv().unwrap() {
+        beats.push(*b);
+    }
+    assert_eq!(beats.len(), 10, "{beats:?}");
+    for (i, b) in beats.iter().enumerate() {
+        assert_eq!(b.role(), Ok(ProcessRole::Planner));
+        assert_eq!(b.seq, i as u64 + 1);
+        assert_eq!(b.stamp_ns, 5_000_000_000 + 100_000_000 * i as u64);
+        assert_eq!(b.pid, std::process::id());
+    }
+    assert_eq!(node.overruns(), 0);
+}
+
+/// A request before any frame waits for the frame; a frame whose header does not cover the
+/// targets is an error the node survives.
+#[test]
+fn requests_wait_for_a_frame_and_bad_frames_are_survived() {
+    let scene = world::generate::evaluation_scene(10, 20, 2);
+    let ns = unique_namespace("noframe");
+    let mut node = PlannerNode::new(
+        &ns,
+        scene.clone(),
+        RobotConfig::default(),
+        Box::new(psi()),
+        PlannerSettings::default(),
+        0,
+    )
+    .unwrap();
+    let p = peers(&ns);
+    p.requests
+        .publish(&request(
+            1,
+            ReplanReason::MissionStart,
+            start_pose(&scene),
+            0,
+        ))
+        .unwrap();
+    let mut now = Duration::ZERO;
+    for _ in 0..5 {
+        now += Duration::from_millis(10);
+        assert_eq!(node.step(now).unwrap(), None);
+    }
+    // A frame that sees only the room's west end.
+    let cam = OverheadCamera::fitting_room(&scene);
+    let mut header = CameraFrameHeader {
+        frame_id: 3,
+        stamp_ns: 0,
+        width_px: 100,
+        height_px: cam.height_px,
+        pixel_format: 0,
+        row_stride_bytes: 300,
+        metres_per_px: cam.metres_per_px,
+        left_x_m: cam.left_x_m,
+        top_y_m: cam.top_y_m,
+    };
+    header.set_pixel_format(PixelFormat::Rgb8);
+    p.camera
+        .publish_with(|f| {
+            f.image_mut(header).unwrap().fill(96);
+        })
+        .unwrap();
+    now += Duration::from_millis(10);
+    assert_eq!(node.step(now).unwrap(), None);
+    let (failures, last) = node.failures();
+    assert_eq!(failures, 1);
+    assert!(last.unwrap().contains("outside the frame"), "{last:?}");
+    // The right frame and a new request: answered, all targets (mask 0 at mission start).
+    publish_frame(&p.camera, &scene, 4);
+    p.requests
+        .publish(&request(
+            2,
+            ReplanReason::MissionStart,
+            start_pose(&scene),
+            0,
+        ))
+        .unwrap();
+    let answer = step_until_answer(&mut node, &mut now);
+    assert_eq!(answer.request_id, 2);
+    assert_eq!(answer.step_count, 2 + 2 * scene.targets.len());
+}

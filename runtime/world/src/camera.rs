@@ -1,0 +1,513 @@
+//! The real overhead camera and Psi's views cut from its frames.
+//!
+//! On the robot the FCN Psi (paper eq. 2, `h = Psi(IM)`) does not get [`crate::view::render_crop`]'s
+//! synthetic crops: it gets views cut out of a ceiling camera's whole-room frame. This module holds
+//! both halves of that path so that they can be tested against each other:
+//!
+//! * [`OverheadCamera`]: a camera looking straight down, described by its metric header (size in
+//!   pixels, metres per pixel, world x of the left edge of column 0, world y of the top edge of
+//!   row 0; rows top-to-bottom = decreasing y, columns = increasing x, docs/architecture.md).
+//! * [`render_frame`]: what such a camera sees of a scene, in RGB8: every pixel is the area mean
+//!   of the colours under it (4 x 4 sub-samples where an outline crosses it), like a real
+//!   sensor's box-filtered pixel. Allocation-free, into the caller's buffer (a loaned
+//!   shared-memory frame).
+//! * [`cut_view`]: the onboard side: Psi's 64 x 32 crop of one (target, side) from any frame by its
+//!   metric header, with exactly the geometry of [`crate::view`] (near crop, or the far crop
+//!   rotated 180 degrees). Each crop cell is the exact area average of the frame's gray levels
+//!   over the cell's 6.25 cm square (pixels weighted by their overlap), so frames finer or
+//!   coarser than 6.25 cm/px and at any offset resample correctly.
+//!
+//! # Colours and the conversion to Psi's gray levels
+//!
+//! Psi was trained on four gray levels (`view::FLOOR_GRAY` 96, `TABLE_GRAY` 176, `CHAIR_GRAY`
+//! 255, `WALL_GRAY` 0). The camera's palette and the conversion are chosen so that flat areas map
+//! back exactly:
+//!
+//! `gray = (77 R + 150 G + 29 B) / 256` (ITU-R BT.601 luma in 8-bit fixed point; the cutter keeps
+//! the fraction while averaging and rounds once per crop cell), with floor (109, 93, 77) -> 96,
+//! table wood (202, 170, 138) -> 176, chair covers white (255, 255, 255) -> 255, beyond the walls
+//! black -> 0, each exactly (`77 R + 150 G + 29 B = 256 * gray`). The conversion is linear, so a
+//! mixed pixel at an outline converts to the area mean of the grays under it. Mono8 frames are
+//! taken as gray levels directly. Table seams and target marks are not drawn: the training
+//! renders have none.
+//!
+//! ```
+//! use world::camera::{FrameLayout, OverheadCamera, cut_view, render_frame};
+//! use world::view::{CROP_CELLS, Side};
+//! let scene = world::generate::evaluation_scene(3, 20, 3);
+//! let camera = OverheadCamera::fitting_room(&scene);
+//! let mut frame = vec![0u8; camera.rgb8_len()];
+//! render_frame(&scene, &camera, &mut frame)?;
+//! let mut crop = [0u8; CROP_CELLS];
+//! cut_view(&frame, &FrameLayout::rgb8(camera), scene.targets[0].x_m, Side::Far, &mut crop)?;
+//! # Ok::<(), world::camera::CameraError>(())
+//! ```
+
+use crate::geometry::OrientedRect;
+use crate::scene::Scene;
+use crate::view::{CELL_SIZE_M, CROP_COLS, CROP_ROWS, Side, crop_point_world};
+
+/// Width of the default camera frame (px).
+pub const DEFAULT_WIDTH_PX: u32 = 640;
+/// Height of the default camera frame (px).
+pub const DEFAULT_HEIGHT_PX: u32 = 480;
+
+/// Colour of bare floor (gray 96).
+pub const FLOOR_RGB: [u8; 3] = [109, 93, 77];
+/// Colour of a table top (gray 176).
+pub const TABLE_RGB: [u8; 3] = [202, 170, 138];
+/// Colour of a chair (gray 255).
+pub const CHAIR_RGB: [u8; 3] = [255, 255, 255];
+/// Colour beyond the walls (gray 0).
+pub const WALL_RGB: [u8; 3] = [0, 0, 0];
+
+/// Sub-samples per pixel side where an outline crosses a pixel.
+const SUBSAMPLES: usize = 4;
+/// Slack (pixels) for a view edge that lies on the frame's edge up to rounding.
+const EDGE_SLACK_PX: f64 = 1e-6;
+
+/// A camera looking straight down at the room: its image size and metric header.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct OverheadCamera {
+    /// Image width (px).
+    pub width_px: u32,
+    /// Image height (px).
+    pub height_px: u32,
+    /// Edge length of one pixel on the floor (m).
+    pub metres_per_px: f64,
+    /// World x of the left edge of column 0 (m).
+    pub left_x_m: f64,
+    /// World y of the top edge of row 0 (m).
+    pub top_y_m: f64,
+}
+
+impl OverheadCamera {
+    /// The default 640 x 480 camera, scaled so that the whole room fits, room centred.
+    pub fn fitting_room(scene: &Scene) -> Self {
+        Self::fitting_room_with(scene, DEFAULT_WIDTH_PX, DEFAULT_HEIGHT_PX)
+    }
+
+    /// A `width_px` x `height_px` camera (each at least 1), scaled so that the whole room fits,
+    /// room centred. The paper's 20 m x 12.2 m room at 640 x 480 gets 3.125 cm per pixel.
+    pub fn fitting_room_with(scene: &Scene, width_px: u32, height_px: u32) -> Self {
+        let (width_px, height_px) = (width_px.max(1), height_px.max(1));
+        let room = &scene.room;
+        let metres_per_px = ((room.x_max_m - room.x_min_m) / f64::from(width_px))
+            .max((room.y_max_m - room.y_min_m) / f64::from(height_px));
+        let centre_x = 0.5 * (room.x_min_m + room.x_max_m);
+        let centre_y = 0.5 * (room.y_min_m + room.y_max_m);
+        Self {
+            width_px,
+            height_px,
+            metres_per_px,
+            left_x_m: centre_x - 0.5 * f64::from(width_px) * metres_per_px,
+            top_y_m: centre_y + 0.5 * f64::from(height_px) * metres_per_px,
+        }
+    }
+
+    /// Bytes of an RGB8 frame without row padding.
+    pub fn rgb8_len(&self) -> usize {
+        self.width_px as usize * self.height_px as usize * 3
+    }
+
+    /// World (x, y) of the centre of pixel (row, col).
+    pub fn pixel_center_world(&self, row: u32, col: u32) -> (f64, f64) {
+        (
+            self.left_x_m + (f64::from(col) + 0.5) * self.metres_per_px,
+            self.top_y_m - (f64::from(row) + 0.5) * self.metres_per_px,
+        )
+    }
+
+    fn check(&self) -> Result<(), CameraError> {
+        if self.width_px == 0 || self.height_px == 0 {
+            return Err(CameraError::BadHeader {
+                field: "width_px/height_px",
+                reason: "must be at least 1",
+            });
+        }
+        if !(self.metres_per_px.is_finite() && self.metres_per_px > 0.0) {
+            return Err(CameraError::BadHeader {
+                field: "metres_per_px",
+                reason: "must be finite and > 0",
+            });
+        }
+        if !(self.left_x_m.is_finite() && self.top_y_m.is_finite()) {
+            return Err(CameraError::BadHeader {
+                field: "left_x_m/top_y_m",
+                reason: "must be finite",
+            });
+        }
+        Ok(())
+    }
+}
+
+/// How a frame's pixels are encoded.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PixelFormat {
+    /// Red, green, blue bytes.
+    Rgb8,
+    /// One gray byte.
+    Mono8,
+}
+
+impl PixelFormat {
+    /// Bytes per pixel.
+    pub fn bytes_per_px(self) -> usize {
+        match self {
+            Self::Rgb8 => 3,
+            Self::Mono8 => 1,
+        }
+    }
+}
+
+/// A frame's full description: geometry, encoding and row stride (what a camera message's
+/// header says).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FrameLayout {
+    /// Size and metric header.
+    pub camera: OverheadCamera,
+    /// Encoding.
+    pub format: PixelFormat,
+    /// Bytes from one row's start to the next's.
+    pub row_stride_bytes: usize,
+}
+
+impl FrameLayout {
+    /// An unpadded RGB8 frame of `camera` (what [`render_frame`] writes).
+    pub fn rgb8(camera: OverheadCamera) -> Self {
+        Self {
+            camera,
+            format: PixelFormat::Rgb8,
+            row_stride_bytes: camera.width_px as usize * 3,
+        }
+    }
+
+    /// Checks the header against itself and the pixel buffer's length.
+    pub fn check(&self, pixels_len: usize) -> Result<(), CameraError> {
+        self.camera.check()?;
+        let row_bytes = self.camera.width_px as usize * self.format.bytes_per_px();
+        if self.row_stride_bytes < row_bytes {
+            return Err(CameraError::BadHeader {
+                field: "row_stride_bytes",
+                reason: "shorter than width_px times bytes per pixel",
+            });
+        }
+        let needed = self.row_stride_bytes * (self.camera.height_px as usize - 1) + row_bytes;
+        if pixels_len < needed {
+            return Err(CameraError::BufferTooSmall {
+                needed,
+                got: pixels_len,
+            });
+        }
+        Ok(())
+    }
+}
+
+/// Why a frame could not be rendered or a view could not be cut from it.
+#[derive(Clone, Copy, Debug, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum CameraError {
+    /// A header field makes no sense.
+    #[error("camera frame header: {field} {reason}")]
+    BadHeader {
+        /// The field.
+        field: &'static str,
+        /// What is wrong with it.
+        reason: &'static str,
+    },
+    /// The pixel buffer is shorter than the header says.
+    #[error("camera frame buffer holds {got} bytes, the header needs {needed}")]
+    BufferTooSmall {
+        /// Bytes the header implies.
+        needed: usize,
+        /// Bytes given.
+        got: usize,
+    },
+    /// The target's x is NaN or infinite.
+    #[error("target x {0} is not finite")]
+    BadTarget(f64),
+    /// The 4 m x 2 m view of (target, side) is not completely inside the frame.
+    #[error(
+        "the {side} view of the target at x = {target_x_m:.3} m spans x {x_min_m:.3}..{x_max_m:.3} m, y {y_min_m:.3}..{y_max_m:.3} m, outside the frame's x {frame_x_min_m:.3}..{frame_x_max_m:.3} m, y {frame_y_min_m:.3}..{frame_y_max_m:.3} m"
+    )]
+    ViewOutsideFrame {
+        /// Target x (m).
+        target_x_m: f64,
+        /// Side of the view.
+        side: Side,
+        /// View extent (m).
+        x_min_m: f64,
+        /// View extent (m).
+        x_max_m: f64,
+        /// View extent (m).
+        y_min_m: f64,
+        /// View extent (m).
+        y_max_m: f64,
+        /// Frame extent (m).
+        frame_x_min_m: f64,
+        /// Frame extent (m).
+        frame_x_max_m: f64,
+        /// Frame extent (m).
+        frame_y_min_m: f64,
+        /// Frame extent (m).
+        frame_y_max_m: f64,
+    },
+}
+
+/// Psi's gray level of an RGB colour, unrounded: `(77 R + 150 G + 29 B) / 256`.
+pub fn luma(rgb: [u8; 3]) -> f64 {
+    f64::from(77 * u32::from(rgb[0]) + 150 * u32::from(rgb[1]) + 29 * u32::from(rgb[2])) / 256.0
+}
+
+/// Psi's gray level of an RGB colour, rounded: exact for the camera's four palette colours.
+pub fn rgb_to_gray(rgb: [u8; 3]) -> u8 {
+    // At most 255.0: cannot overflow.
+    luma(rgb).round() as u8
+}
+
+/// What lies on the floor at a point, by the same precedence as `view::render_crop`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Surface {
+    Wall,
+    Floor,
+    Table,
+    Chair,
+}
+
+impl Surface {
+    fn rgb(self) -> [u8; 3] {
+        match self {
+            Surface::Wall => WALL_RGB,
+            Surface::Floor => FLOOR_RGB,
+            Surface::Table => TABLE_RGB,
+            Surface::Chair => CHAIR_RGB,
+        }
+    }
+}
+
+/// The scene's furniture for the renderer, without a heap: the two tables and the chairs (whose
+/// footprints are built on demand, only for chairs close to a pixel).
+struct Furniture<'s> {
+    scene: &'s Scene,
+    tables: [OrientedRect; 2],
+}
+
+impl Furniture<'_> {
+    fn surface_at(&self, x_m: f64, y_m: f64) -> Surface {
+        if !self.scene.room.contains(x_m, y_m) {
+            Surface::Wall
+        } else if self.scene.chairs.iter().any(|c| {
+            // Cheap rejection first: the footprint needs a sine and a cosine.
+            let r = 0.5 * c.depth_m.hypot(c.width_m);
+            (x_m - c.x_m).abs() <= r
+                && (y_m - c.y_m).abs() <= r
+                && c.footprint().contains_point(x_m, y_m)
+        }) {
+            Surface::Chair
+        } else if self.tables.iter().any(|t| t.contains_point(x_m, y_m)) {
+            Surface::Table
+        } else {
+            Surface::Floor
+        }
+    }
+
+    /// The colour of the pixel covering `[x0, x1] x [y0, y1]`: the flat colour when one surface
+    /// covers it all, else the mean of 4 x 4 sub-samples.
+    fn pixel_rgb(&self, x0: f64, x1: f64, y0: f64, y1: f64) -> [u8; 3] {
+        let room = &self.scene.room;
+        let inside_room = room.contains(x0, y0) && room.contains(x1, y1);
+        let outside_room =
+            x1 < room.x_min_m || x0 > room.x_max_m || y1 < room.y_min_m || y0 > room.y_max_m;
+        if outside_room {
+            return WALL_RGB;
+        }
+        // A chair is certainly apart when its circumcircle misses the pixel's box.
+        let chair_near = self.scene.chairs.iter().any(|c| {
+            let r = 0.5 * c.depth_m.hypot(c.width_m);
+            c.x_m + r >= x0 && c.x_m - r <= x1 && c.y_m + r >= y0 && c.y_m - r <= y1
+        });
+        if inside_room && !chair_near {
+            let covered = |t: &OrientedRect| {
+                t.contains_point(x0, y0)
+                    && t.contains_point(x1, y0)
+                    && t.contains_point(x0, y1)
+                    && t.contains_point(x1, y1)
+            };
+            let touches = |t: &OrientedRect| {
+                let (bx0, bx1, by0, by1) = t.bounds();
+                bx1 >= x0 && bx0 <= x1 && by1 >= y0 && by0 <= y1
+            };
+            if !self.tables.iter().any(touches) {
+                return FLOOR_RGB;
+            }
+            if self.tables.iter().any(covered) {
+                return TABLE_RGB;
+            }
+        }
+        let mut sum = [0u32; 3];
+        for i in 0..SUBSAMPLES {
+            for j in 0..SUBSAMPLES {
+                let fx = (j as f64 + 0.5) / SUBSAMPLES as f64;
+                let fy = (i as f64 + 0.5) / SUBSAMPLES as f64;
+                let rgb = self
+                    .surface_at(x0 + fx * (x1 - x0), y1 - fy * (y1 - y0))
+                    .rgb();
+                for (s, v) in sum.iter_mut().zip(rgb) {
+                    *s += u32::from(v);
+                }
+            }
+        }
+        let n = (SUBSAMPLES * SUBSAMPLES) as u32;
+        // Rounded integer mean per channel: at most 255.
+        sum.map(|s| ((s + n / 2) / n) as u8)
+    }
+}
+
+/// Renders what `camera` sees of `scene` into `out` as unpadded RGB8 (`camera.rgb8_len()`
+/// bytes): walls, floor, tables and chairs in the palette of this module, each pixel the area mean
+/// of the colours under it. Allocates nothing.
+pub fn render_frame(
+    scene: &Scene,
+    camera: &OverheadCamera,
+    out: &mut [u8],
+) -> Result<(), CameraError> {
+    let layout = FrameLayout::rgb8(*camera);
+    layout.check(out.len())?;
+    let furniture = Furniture {
+        scene,
+        tables: [
+            scene.banquet_table.footprint(),
+            scene.loading_table.footprint(),
+        ],
+    };
+    let m = camera.metres_per_px;
+    for (row, line) in out
+        .chunks_exact_mut(layout.row_stride_bytes)
+        .take(camera.height_px as usize)
+        .enumerate()
+    {
+        let y1 = camera.top_y_m - row as f64 * m;
+        let y0 = y1 - m;
+        for (col, px) in line.chunks_exact_mut(3).enumerate() {
+            let x0 = camera.left_x_m + col as f64 * m;
+            px.copy_from_slice(&furniture.pixel_rgb(x0, x0 + m, y0, y1));
+        }
+    }
+    Ok(())
+}
+
+/// Cuts Psi's 64 x 32 crop of (`target_x_m`, `side`) out of a camera frame by its metric header:
+/// the near crop, or the far crop rotated 180 degrees, exactly the cells of
+/// [`crate::view::cell_center_world`]. Each cell is the area-weighted mean gray level (see the
+/// module docs for the conversion) of the frame pixels under its 6.25 cm square, rounded once.
+/// Allocates nothing.
+pub fn cut_view(
+    pixels: &[u8],
+    layout: &FrameLayout,
+    target_x_m: f64,
+    side: Side,
+    crop: &mut [u8; CROP_ROWS * CROP_COLS],
+) -> Result<(), CameraError> {
+    layout.check(pixels.len())?;
+    if !target_x_m.is_finite() {
+        return Err(CameraError::BadTarget(target_x_m));
+    }
+    let cam = &layout.camera;
+    let m = cam.metres_per_px;
+    // The view's extent, and that it lies inside the frame.
+    let (xa, ya) = crop_point_world(target_x_m, side, 0.0, 0.0);
+    let (xb, yb) = crop_point_world(target_x_m, side, CROP_ROWS as f64, CROP_COLS as f64);
+    let (x_min, x_max, y_min, y_max) = (xa.min(xb), xa.max(xb), ya.min(yb), ya.max(yb));
+    let width_px = f64::from(cam.width_px);
+    let height_px = f64::from(cam.height_px);
+    let inside = (x_min - cam.left_x_m) / m >= -EDGE_SLACK_PX
+        && (x_max - cam.left_x_m) / m <= width_px + EDGE_SLACK_PX
+        && (cam.top_y_m - y_max) / m >= -EDGE_SLACK_PX
+        && (cam.top_y_m - y_min) / m <= height_px + EDGE_SLACK_PX;
+    if !inside {
+        return Err(CameraError::ViewOutsideFrame {
+            target_x_m,
+            side,
+            x_min_m: x_min,
+            x_max_m: x_max,
+            y_min_m: y_min,
+            y_max_m: y_max,
+            frame_x_min_m: cam.left_x_m,
+            frame_x_max_m: cam.left_x_m + width_px * m,
+            frame_y_min_m: cam.top_y_m - height_px * m,
+            frame_y_max_m: cam.top_y_m,
+        });
+    }
+    let bpp = layout.format.bytes_per_px();
+    let gray_of = |row: usize, col: usize| -> f64 {
+        let at = row * layout.row_stride_bytes + col * bpp;
+        match layout.format {
+            PixelFormat::Mono8 => f64::from(pixels[at]),
+            PixelFormat::Rgb8 => luma([pixels[at], pixels[at + 1], pixels[at + 2]]),
+        }
+    };
+    let cell_px = CELL_SIZE_M / m;
+    for r in 0..CROP_ROWS {
+        for c in 0..CROP_COLS {
+            let (xa, ya) = crop_point_world(target_x_m, side, r as f64, c as f64);
+            let (xb, yb) = crop_point_world(target_x_m, side, r as f64 + 1.0, c as f64 + 1.0);
+            // The cell in fractional pixel coordinates, clamped onto the frame (only rounding
+            // can put it outside after the check above).
+            let u0 = ((xa.min(xb) - cam.left_x_m) / m).clamp(0.0, width_px);
+            let u1 = (u0 + cell_px).min(width_px);
+            let v0 = ((cam.top_y_m - ya.max(yb)) / m).clamp(0.0, height_px);
+            let v1 = (v0 + cell_px).min(height_px);
+            let mut sum = 0.0;
+            let mut area = 0.0;
+            let row_last = (v1.ceil() as usize).min(cam.height_px as usize);
+            let col_last = (u1.ceil() as usize).min(cam.width_px as usize);
+            for row in (v0.floor() as usize)..row_last {
+                let wy = v1.min(row as f64 + 1.0) - v0.max(row as f64);
+                if wy <= 0.0 {
+                    continue;
+                }
+                for col in (u0.floor() as usize)..col_last {
+                    let wx = u1.min(col as f64 + 1.0) - u0.max(col as f64);
+                    if wx <= 0.0 {
+                        continue;
+                    }
+                    sum += wx * wy * gray_of(row, col);
+                    area += wx * wy;
+                }
+            }
+            let gray = if area > 0.0 { sum / area } else { 0.0 };
+            crop[r * CROP_COLS + c] = gray.round().clamp(0.0, 255.0) as u8;
+        }
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::view::{CHAIR_GRAY, FLOOR_GRAY, TABLE_GRAY, WALL_GRAY};
+
+    #[test]
+    fn palette_converts_exactly_to_psi_gray_levels() {
+        for (rgb, gray) in [
+            (FLOOR_RGB, FLOOR_GRAY),
+            (TABLE_RGB, TABLE_GRAY),
+            (CHAIR_RGB, CHAIR_GRAY),
+            (WALL_RGB, WALL_GRAY),
+        ] {
+            assert_eq!(luma(rgb), f64::from(gray), "{rgb:?}");
+            assert_eq!(rgb_to_gray(rgb), gray);
+        }
+    }
+
+    #[test]
+    fn default_camera_fits_the_paper_room() {
+        let scene = Scene::empty_paper_room();
+        let cam = OverheadCamera::fitting_room(&scene);
+        assert_eq!((cam.width_px, cam.height_px), (640, 480));
+        assert_eq!(cam.metres_per_px, 0.03125);
+        assert!(cam.left_x_m <= scene.room.x_min_m && cam.top_y_m >= scene.room.y_max_m);
+        assert!(cam.left_x_m + 640.0 * cam.metres_per_px >= scene.room.x_max_m);
+        assert!(cam.top_y_m - 480.0 * cam.metres_per_px <= scene.room.y_min_m);
+    }
+}
