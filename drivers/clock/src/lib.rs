@@ -42,6 +42,15 @@ pub trait Clock: Send + Sync {
     fn is_lost(&self) -> bool {
         false
     }
+
+    /// Marks work handed to another thread of this process (a worker) as in progress: a
+    /// simulated clock does not advance until the matching [`Clock::end_hold`], so the work
+    /// takes no simulated time, as if done in place; the wall clock ignores it. Lets a control
+    /// loop keep allocating work off its thread and stay deterministic in lock-step.
+    fn begin_hold(&self) {}
+
+    /// Ends one [`Clock::begin_hold`] (called by the worker when its answer is ready).
+    fn end_hold(&self) {}
 }
 
 impl<C: Clock + ?Sized> Clock for Box<C> {
@@ -54,6 +63,12 @@ impl<C: Clock + ?Sized> Clock for Box<C> {
     fn is_lost(&self) -> bool {
         (**self).is_lost()
     }
+    fn begin_hold(&self) {
+        (**self).begin_hold()
+    }
+    fn end_hold(&self) {
+        (**self).end_hold()
+    }
 }
 
 impl<C: Clock + ?Sized> Clock for std::sync::Arc<C> {
@@ -65,6 +80,12 @@ impl<C: Clock + ?Sized> Clock for std::sync::Arc<C> {
     }
     fn is_lost(&self) -> bool {
         (**self).is_lost()
+    }
+    fn begin_hold(&self) {
+        (**self).begin_hold()
+    }
+    fn end_hold(&self) {
+        (**self).end_hold()
     }
 }
 
@@ -206,10 +227,12 @@ pub(crate) fn pid_alive(pid: u32) -> bool {
     }
     match std::fs::read_to_string(format!("/proc/{pid}/stat")) {
         // The state letter follows the parenthesised command name.
-        Ok(stat) => match stat.rfind(')').and_then(|i| stat[i + 1..].trim_start().chars().next()) {
-            Some('Z') | Some('X') | Some('x') => false,
-            _ => true,
-        },
+        Ok(stat) => {
+            let state = stat
+                .rfind(')')
+                .and_then(|i| stat[i + 1..].trim_start().chars().next());
+            !matches!(state, Some('Z' | 'X' | 'x'))
+        }
         Err(_) => {
             // No /proc: fall back to signal 0, which only checks existence and permission.
             // SAFETY: signal 0 sends nothing.

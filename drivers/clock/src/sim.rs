@@ -29,7 +29,7 @@ use crate::{Clock, ClockError, check_name, futex, monotonic_now, pid_alive};
 pub const MAX_PARTICIPANTS: usize = 16;
 
 /// "gropclk" and the layout version.
-const MAGIC: u64 = 0x6772_6f70_636c_6b01;
+const MAGIC: u64 = 0x6772_6f70_636c_6b02;
 
 const FREE: u32 = 0;
 const CLAIMED: u32 = 1;
@@ -46,6 +46,10 @@ struct Slot {
     rank: AtomicU32,
     /// Bumped by the host to release the participant (its futex word).
     run_gen: AtomicU32,
+    /// Work of the participant in progress on another of its threads ([`Clock::begin_hold`]):
+    /// the host treats a sleeping participant with holds as running.
+    holds: AtomicU32,
+    reserved: u32,
     wake_ns: AtomicU64,
     name: [AtomicU64; 4],
 }
@@ -279,6 +283,7 @@ impl SimClockHost {
             return false;
         }
         let name = decode_name(&slot.name);
+        slot.holds.store(0, Ordering::Release);
         slot.state.store(FREE, Ordering::Release);
         log::warn!("simulated clock: participant {name:?} (pid {pid}) died; released");
         self.departures.push(Departure { name, pid, at: now });
@@ -291,14 +296,14 @@ impl SimClockHost {
         let mut warned = false;
         loop {
             let word = self.shared().host_word.load(Ordering::Acquire);
+            let is_busy = |s: &Slot| match s.state.load(Ordering::Acquire) {
+                RUNNING => true,
+                SLEEPING => s.holds.load(Ordering::Acquire) > 0,
+                _ => false,
+            };
             let busy: Option<usize> = match only {
-                Some(i) => (self.shared().slots[i].state.load(Ordering::Acquire) == RUNNING)
-                    .then_some(i),
-                None => self
-                    .shared()
-                    .slots
-                    .iter()
-                    .position(|s| s.state.load(Ordering::Acquire) == RUNNING),
+                Some(i) => is_busy(&self.shared().slots[i]).then_some(i),
+                None => self.shared().slots.iter().position(is_busy),
             };
             let Some(index) = busy else {
                 return;
@@ -465,6 +470,7 @@ impl SimClock {
             w.store(v, Ordering::Relaxed);
         }
         s.wake_ns.store(0, Ordering::Relaxed);
+        s.holds.store(0, Ordering::Relaxed);
         s.state.store(RUNNING, Ordering::Release);
         shared.host_word.fetch_add(1, Ordering::Release);
         futex::wake_all(&shared.host_word);
@@ -545,14 +551,27 @@ impl Clock for SimClock {
         // Cheap enough for every cycle: the pid check happens while sleeping.
         self.lost.load(Ordering::Acquire) || self.shared().closed.load(Ordering::Acquire) != 0
     }
+
+    fn begin_hold(&self) {
+        self.shared().slots[self.slot]
+            .holds
+            .fetch_add(1, Ordering::AcqRel);
+    }
+
+    fn end_hold(&self) {
+        let shared = self.shared();
+        let holds = &shared.slots[self.slot].holds;
+        // Never below zero, whatever a caller does.
+        let _ = holds.fetch_update(Ordering::AcqRel, Ordering::Acquire, |h| h.checked_sub(1));
+        shared.host_word.fetch_add(1, Ordering::Release);
+        futex::wake_all(&shared.host_word);
+    }
 }
 
 impl Drop for SimClock {
     fn drop(&mut self) {
         let shared = self.shared();
-        shared.slots[self.slot]
-            .state
-            .store(FREE, Ordering::Release);
+        shared.slots[self.slot].state.store(FREE, Ordering::Release);
         shared.host_word.fetch_add(1, Ordering::Release);
         futex::wake_all(&shared.host_word);
     }

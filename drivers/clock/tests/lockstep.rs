@@ -136,7 +136,10 @@ fn bad_specs_and_names_are_errors() {
     assert!(grop_clock::open("sim:../etc", "x", 1).is_err());
     assert!(grop_clock::open("sim:", "x", 1).is_err());
     let missing = SimClock::join(&unique("nohost"), "x", 1, Duration::from_millis(30));
-    assert!(matches!(missing, Err(grop_clock::ClockError::NoHost { .. })));
+    assert!(matches!(
+        missing,
+        Err(grop_clock::ClockError::NoHost { .. })
+    ));
     let wall = grop_clock::open("wall", "x", 1).unwrap();
     let t0 = wall.now();
     wall.sleep_until(t0 + MS);

@@ -234,7 +234,13 @@ fn draw(
     img
 }
 
-pub(crate) fn draw_segment(img: &mut RgbImage, room: &RoomView, a: (f64, f64), b: (f64, f64), c: Rgb<u8>) {
+pub(crate) fn draw_segment(
+    img: &mut RgbImage,
+    room: &RoomView,
+    a: (f64, f64),
+    b: (f64, f64),
+    c: Rgb<u8>,
+) {
     let length = (b.0 - a.0).hypot(b.1 - a.1);
     let n = (length / 0.02).ceil().max(1.0) as usize;
     for k in 0..=n {

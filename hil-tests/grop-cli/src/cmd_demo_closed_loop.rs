@@ -22,7 +22,8 @@ fn parse_camera(s: &str) -> anyhow::Result<(u32, u32)> {
         .with_context(|| format!("--camera {s:?}: expected WIDTHxHEIGHT"))?;
     Ok((
         w.parse().with_context(|| format!("--camera width {w:?}"))?,
-        h.parse().with_context(|| format!("--camera height {h:?}"))?,
+        h.parse()
+            .with_context(|| format!("--camera height {h:?}"))?,
     ))
 }
 
@@ -37,10 +38,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let model = std::fs::canonicalize(&args.model).or_else(|_| {
         // From any working directory: the committed model in the workspace.
         std::fs::canonicalize(
-            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../..").join(&args.model),
+            std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+                .join("../..")
+                .join(&args.model),
         )
     });
-    let model = model.with_context(|| format!("the feasibility network {}", args.model.display()))?;
+    let model =
+        model.with_context(|| format!("the feasibility network {}", args.model.display()))?;
     let bins = mission::binaries(!args.no_build)?;
     let spec = MissionSpec {
         dir: args.run_dir.clone(),
@@ -90,9 +94,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     picture
         .save(&args.out)
         .with_context(|| format!("writing {}", args.out.display()))?;
-    println!("wrote {} (run files in {})", args.out.display(), args.run_dir.display());
+    println!(
+        "wrote {} (run files in {})",
+        args.out.display(),
+        args.run_dir.display()
+    );
     if report.end == MissionEnd::NeverStarted {
-        anyhow::bail!("the onboard processes never joined; see the logs in {}", args.run_dir.display());
+        anyhow::bail!(
+            "the onboard processes never joined; see the logs in {}",
+            args.run_dir.display()
+        );
     }
     Ok(())
 }
@@ -124,7 +135,9 @@ fn print_report(report: &WorldReport, wall: Duration) {
     println!("steps:");
     for o in &report.objects {
         let what = match o.state {
-            ObjectState::Released { verdict, error_m, .. } => {
+            ObjectState::Released {
+                verdict, error_m, ..
+            } => {
                 format!("{verdict:?}, {:.1} cm from its target", error_m * 100.0)
             }
             ObjectState::AtStation => "never loaded".into(),
@@ -155,7 +168,10 @@ fn print_report(report: &WorldReport, wall: Duration) {
     );
     println!("latency per stage:");
     if let Some(plan) = report.plans.first() {
-        println!("  perception + planning (wall): {:.2} ms", plan.decision_us as f64 / 1e3);
+        println!(
+            "  perception + planning (wall): {:.2} ms",
+            plan.decision_us as f64 / 1e3
+        );
     }
     if let Some(s) = t.request_to_plan_s {
         println!("  plan request -> plan (simulated): {:.0} ms", s * 1e3);
@@ -168,11 +184,17 @@ fn print_report(report: &WorldReport, wall: Duration) {
         let n = legs.len() as f64;
         let rms = (legs
             .iter()
-            .map(|l| (l.realised[0] - l.commanded[0]).powi(2) + (l.realised[1] - l.commanded[1]).powi(2))
+            .map(|l| {
+                (l.realised[0] - l.commanded[0]).powi(2) + (l.realised[1] - l.commanded[1]).powi(2)
+            })
             .sum::<f64>()
             / (2.0 * n))
             .sqrt();
-        println!("  {} legs: realised - commanded, rms per axis {:.3} m", legs.len(), rms);
+        println!(
+            "  {} legs: realised - commanded, rms per axis {:.3} m",
+            legs.len(),
+            rms
+        );
     }
 }
 
@@ -189,7 +211,14 @@ fn draw(args: &Args, scene: &world::Scene, report: &WorldReport) -> view::RgbIma
         );
     }
     for leg in &report.legs {
-        view::draw_marker(&mut img, &room, leg.commanded[0], leg.commanded[1], 0.05, Rgb([120, 120, 120]));
+        view::draw_marker(
+            &mut img,
+            &room,
+            leg.commanded[0],
+            leg.commanded[1],
+            0.05,
+            Rgb([120, 120, 120]),
+        );
     }
     for o in &report.objects {
         let colour = match o.state {
@@ -205,7 +234,14 @@ fn draw(args: &Args, scene: &world::Scene, report: &WorldReport) -> view::RgbIma
         }
     }
     for c in &report.collisions {
-        view::draw_marker(&mut img, &room, c.base[0], c.base[1], 0.07, Rgb([255, 0, 255]));
+        view::draw_marker(
+            &mut img,
+            &room,
+            c.base[0],
+            c.base[1],
+            0.07,
+            Rgb([255, 0, 255]),
+        );
     }
     img
 }

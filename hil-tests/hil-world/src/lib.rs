@@ -36,8 +36,8 @@ use world::{RobotConfig, Scene};
 use fixes::{FixModel, FixSimulator};
 use objects::{JudgeConfig, ObjectEvent, ObjectTracker, Verdict};
 use report::{
-    CollisionRecord, DeathRecord, EventRecord, LegRecord, LoopTiming, MissionEnd, Part,
-    PlanRecord, WorldReport,
+    CollisionRecord, DeathRecord, EventRecord, LegRecord, LoopTiming, MissionEnd, Part, PlanRecord,
+    WorldReport,
 };
 
 /// The world's settings.
@@ -100,7 +100,11 @@ impl WorldConfig {
             fix_period: Duration::from_millis(100),
             fixes: FixModel::for_sigma(sigma),
             judge: JudgeConfig::default(),
-            tray_slots: vec![[-0.20, -0.18, 1.10], [-0.20, 0.0, 1.10], [-0.20, 0.18, 1.10]],
+            tray_slots: vec![
+                [-0.20, -0.18, 1.10],
+                [-0.20, 0.0, 1.10],
+                [-0.20, 0.18, 1.10],
+            ],
             pace: None,
             expect: vec!["grop-planner".into(), "grop-executive".into()],
             join_timeout: Duration::from_secs(60),
@@ -296,8 +300,11 @@ impl World {
         let mut step_wall = Duration::ZERO;
         let mut obstacles: Vec<ObstacleBox> = Vec::with_capacity(64);
         let mut frame_buf = vec![0u8; (cfg.camera_px.0 * cfg.camera_px.1 * 3) as usize];
-        let camera =
-            world::camera::OverheadCamera::fitting_room_with(&cfg.scene, cfg.camera_px.0, cfg.camera_px.1);
+        let camera = world::camera::OverheadCamera::fitting_room_with(
+            &cfg.scene,
+            cfg.camera_px.0,
+            cfg.camera_px.1,
+        );
         let mut rendered_once = false;
         let dt = cfg.step;
 
@@ -315,7 +322,10 @@ impl World {
                     joined = true;
                     mission_start = Some(now);
                     self.host.set_pace(cfg.pace);
-                    log::info!("world: {names:?} joined at {:.3} s; mission starts", secs(now));
+                    log::info!(
+                        "world: {names:?} joined at {:.3} s; mission starts",
+                        secs(now)
+                    );
                 } else if wall_start.elapsed() > cfg.join_timeout {
                     log::error!("world: onboard processes never joined ({names:?})");
                     report.end = MissionEnd::NeverStarted;
@@ -387,7 +397,8 @@ impl World {
             if now >= next_collision_check {
                 next_collision_check = now + Duration::from_millis(10);
                 let base_hit = world::base_collides(&cfg.scene, &cfg.robot, pose);
-                cfg.scene.obstacle_boxes_into(&cfg.robot, pose, &mut obstacles);
+                cfg.scene
+                    .obstacle_boxes_into(&cfg.robot, pose, &mut obstacles);
                 // The robot's own body (first box) is not furniture.
                 let furniture = obstacles.get(1..).unwrap_or(&[]);
                 let arm_hit = ur5e_kin::place::arm_collides(place, pose, &snap.q, furniture);
@@ -405,7 +416,10 @@ impl World {
                         self.world_event(
                             grop_ipc::EventKind::Collision,
                             now,
-                            &format!("{part:?} touched furniture at ({:.2}, {:.2})", pose.x_m, pose.y_m),
+                            &format!(
+                                "{part:?} touched furniture at ({:.2}, {:.2})",
+                                pose.x_m, pose.y_m
+                            ),
                         );
                     }
                     in_collision[k] = hit;
@@ -457,7 +471,10 @@ impl World {
                 self.world_event(
                     grop_ipc::EventKind::ObjectJudged,
                     now,
-                    &format!("object {index}: {verdict:?}, {:.3} m from its target", error_m),
+                    &format!(
+                        "object {index}: {verdict:?}, {:.3} m from its target",
+                        error_m
+                    ),
                 );
             }
 
@@ -522,7 +539,8 @@ impl World {
                 // The furniture does not move: render once, publish the same picture.
                 if !rendered_once {
                     rendered_once = true;
-                    if let Err(e) = world::camera::render_frame(&cfg.scene, &camera, &mut frame_buf) {
+                    if let Err(e) = world::camera::render_frame(&cfg.scene, &camera, &mut frame_buf)
+                    {
                         log::error!("world: camera: {e}");
                     }
                 }
@@ -619,7 +637,10 @@ impl World {
                 }
             }
             for d in report.deaths.iter_mut() {
-                if d.base_stopped_at_s.is_none() && f64::from(v).abs() < 0.01 && f64::from(w).abs() < 0.01 {
+                if d.base_stopped_at_s.is_none()
+                    && f64::from(v).abs() < 0.01
+                    && f64::from(w).abs() < 0.01
+                {
                     d.base_stopped_at_s = Some(secs(now));
                 }
                 if d.arm_stopped_at_s.is_none() && max_abs(&snap.qd) < 0.01 {
@@ -640,14 +661,23 @@ impl World {
                         .objects
                         .objects()
                         .iter()
-                        .filter(|o| matches!(o.state, objects::ObjectState::Released { verdict: Verdict::Placed, .. }))
+                        .filter(|o| {
+                            matches!(
+                                o.state,
+                                objects::ObjectState::Released {
+                                    verdict: Verdict::Placed,
+                                    ..
+                                }
+                            )
+                        })
                         .count();
                     println!(
-                        "progress t={:.1} x={:.2} y={:.2} v={:.2} placed={placed}/{}",
+                        "progress t={:.1} x={:.2} y={:.2} v={:.2} arm={:.2} placed={placed}/{}",
                         secs(now),
                         pose.x_m,
                         pose.y_m,
                         v,
+                        max_abs(&snap.qd),
                         self.objects.objects().len()
                     );
                 }

@@ -194,7 +194,11 @@ impl RunningMission {
 
     /// Waits for the world to finish (forwarding its lines to `echo`), then stops the onboard
     /// processes and returns the world's report.
-    pub fn finish(mut self, timeout: Duration, echo: &mut dyn FnMut(&str)) -> anyhow::Result<WorldReport> {
+    pub fn finish(
+        mut self,
+        timeout: Duration,
+        echo: &mut dyn FnMut(&str),
+    ) -> anyhow::Result<WorldReport> {
         let end = Instant::now() + timeout;
         let status = loop {
             while let Ok(line) = self.lines.try_recv() {
@@ -216,11 +220,15 @@ impl RunningMission {
         }
         self.stop_onboard();
         if !status.success() {
-            bail!("grop-world failed ({status}); see the log in {}", self.report_path.display());
+            bail!(
+                "grop-world failed ({status}); see the log in {}",
+                self.report_path.display()
+            );
         }
         let text = std::fs::read_to_string(&self.report_path)
             .with_context(|| format!("reading {}", self.report_path.display()))?;
-        serde_json::from_str(&text).with_context(|| format!("parsing {}", self.report_path.display()))
+        serde_json::from_str(&text)
+            .with_context(|| format!("parsing {}", self.report_path.display()))
     }
 
     fn stop_onboard(&mut self) {
@@ -256,7 +264,8 @@ impl Drop for RunningMission {
 /// Starts the world, waits for its ready line, then starts the planner and the executive
 /// against it.
 pub fn start(spec: &MissionSpec, bins: &Binaries) -> anyhow::Result<RunningMission> {
-    std::fs::create_dir_all(&spec.dir).with_context(|| format!("creating {}", spec.dir.display()))?;
+    std::fs::create_dir_all(&spec.dir)
+        .with_context(|| format!("creating {}", spec.dir.display()))?;
     let run = unique_run_name("m");
     let scene_path = spec.dir.join("scene.toml");
     spec.scene
@@ -282,7 +291,10 @@ pub fn start(spec: &MissionSpec, bins: &Binaries) -> anyhow::Result<RunningMissi
         .arg("--robot")
         .arg(&robot_path)
         .args(["--run", &run, "--seed", &spec.seed.to_string()])
-        .args(["--camera", &format!("{}x{}", spec.camera_px.0, spec.camera_px.1)])
+        .args([
+            "--camera",
+            &format!("{}x{}", spec.camera_px.0, spec.camera_px.1),
+        ])
         .args(["--max-sim-s", &spec.max_sim_s.to_string()])
         .args(["--progress-s", &spec.progress_s.to_string()])
         .arg("--report")
@@ -310,7 +322,10 @@ pub fn start(spec: &MissionSpec, bins: &Binaries) -> anyhow::Result<RunningMissi
             Ok(_) => continue,
             Err(_) => {
                 let _ = world.kill();
-                bail!("grop-world did not get ready (see {})", spec.dir.join("world.log").display());
+                bail!(
+                    "grop-world did not get ready (see {})",
+                    spec.dir.join("world.log").display()
+                );
             }
         }
     };
@@ -325,7 +340,15 @@ pub fn start(spec: &MissionSpec, bins: &Binaries) -> anyhow::Result<RunningMissi
     let bus = field("bus")?;
 
     let deployment_path = spec.dir.join("deployment.toml");
-    let deployment = crate::deployment_for(spec, &scene_path, &robot_path, &namespace, &clock, &bus, &field)?;
+    let deployment = crate::deployment_for(
+        spec,
+        &scene_path,
+        &robot_path,
+        &namespace,
+        &clock,
+        &bus,
+        &field,
+    )?;
     std::fs::write(&deployment_path, deployment)
         .with_context(|| format!("writing {}", deployment_path.display()))?;
 
@@ -335,7 +358,10 @@ pub fn start(spec: &MissionSpec, bins: &Binaries) -> anyhow::Result<RunningMissi
         .stdin(Stdio::null())
         .stdout(log("planner-out")?)
         .stderr(log("planner")?)
-        .env("RUST_LOG", std::env::var("RUST_LOG").unwrap_or_else(|_| "info".into()))
+        .env(
+            "RUST_LOG",
+            std::env::var("RUST_LOG").unwrap_or_else(|_| "info".into()),
+        )
         .spawn()
         .context("starting grop-planner")?;
     let executive = Command::new(&bins.executive)
@@ -344,7 +370,10 @@ pub fn start(spec: &MissionSpec, bins: &Binaries) -> anyhow::Result<RunningMissi
         .stdin(Stdio::null())
         .stdout(log("executive-out")?)
         .stderr(log("executive")?)
-        .env("RUST_LOG", std::env::var("RUST_LOG").unwrap_or_else(|_| "info".into()))
+        .env(
+            "RUST_LOG",
+            std::env::var("RUST_LOG").unwrap_or_else(|_| "info".into()),
+        )
         .spawn()
         .context("starting grop-executive")?;
     Ok(RunningMission {

@@ -164,7 +164,9 @@ impl ObjectTracker {
 
     /// Whether any object waits at the station.
     pub fn any_at_station(&self) -> bool {
-        self.objects.iter().any(|o| o.state == ObjectState::AtStation)
+        self.objects
+            .iter()
+            .any(|o| o.state == ObjectState::AtStation)
     }
 
     /// One step of the gripper: `world_from_base` is the true base pose, `tcp` the tool centre
@@ -179,7 +181,11 @@ impl ObjectTracker {
         table_contains: impl Fn(f64, f64) -> bool,
     ) -> (Option<f64>, Option<ObjectEvent>) {
         let w = self.judge.object_width_m;
-        if let Some(held) = self.objects.iter().position(|o| o.state == ObjectState::Held) {
+        if let Some(held) = self
+            .objects
+            .iter()
+            .position(|o| o.state == ObjectState::Held)
+        {
             if opening_m > w + 0.005 {
                 let target = self.objects[held].target;
                 let at = [tcp.x, tcp.y, tcp.z];
@@ -256,7 +262,9 @@ mod tests {
         // Carried to 2 cm off the target and opened.
         let (_, ev) = t.step_gripper(&base, Point3::new(1.02, 6.0, 1.3), 0.1, false, table);
         match ev {
-            Some(ObjectEvent::Judged { verdict, error_m, .. }) => {
+            Some(ObjectEvent::Judged {
+                verdict, error_m, ..
+            }) => {
                 assert_eq!(verdict, Verdict::Placed);
                 assert!((error_m - 0.02).abs() < 1e-9);
             }

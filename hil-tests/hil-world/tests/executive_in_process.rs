@@ -38,7 +38,11 @@ unsafe impl GlobalAlloc for Counting {
             let n = ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
             if n < 3 && std::env::var_os("GROP_ALLOC_TRACE").is_some() {
                 COUNTING.with(|c| c.set(false));
-                eprintln!("allocation {n} of {} bytes at:\n{}", layout.size(), std::backtrace::Backtrace::force_capture());
+                eprintln!(
+                    "allocation {n} of {} bytes at:\n{}",
+                    layout.size(),
+                    std::backtrace::Backtrace::force_capture()
+                );
                 COUNTING.with(|c| c.set(true));
             }
         }
@@ -73,13 +77,23 @@ fn namespace(test: &str) -> String {
     )
 }
 
-/// Never used to sleep: the tests call `cycle(now)` themselves.
-struct ManualClock;
+/// Never used to sleep: the tests call `cycle(now)` themselves, and, like the simulated clock,
+/// do not advance time while the executive's worker holds it.
+#[derive(Default)]
+struct ManualClock {
+    holds: std::sync::atomic::AtomicU32,
+}
 impl Clock for ManualClock {
     fn now(&self) -> Duration {
         Duration::ZERO
     }
     fn sleep_until(&self, _deadline: Duration) {}
+    fn begin_hold(&self) {
+        self.holds.fetch_add(1, Ordering::AcqRel);
+    }
+    fn end_hold(&self) {
+        self.holds.fetch_sub(1, Ordering::AcqRel);
+    }
 }
 
 /// An arm whose every skill takes `cycles` cycles; closing grips an object.
@@ -140,6 +154,7 @@ fn scene() -> Scene {
 
 struct Harness {
     exec: Executive<MemoryBusNode, FakeArm>,
+    clock: Arc<ManualClock>,
     base: SimRmpNode<MemoryBusNode>,
     scene: Scene,
     plans: TopicPublisher<TaskPlanMsg>,
@@ -150,8 +165,14 @@ struct Harness {
     states: TopicSubscriber<BaseStateMsg>,
     now: Duration,
     seen: Vec<EventKind>,
+    /// True base position at every GoalReached.
+    stops: Vec<[f64; 2]>,
     planner_alive: bool,
     fixes_on: bool,
+    /// Noisy fixes as the world makes them (None: exact fixes).
+    noisy: Option<hil_world::fixes::FixSimulator>,
+    /// The plan the harness answers with (None: the default mission).
+    custom_plan: Option<Vec<TaskStep>>,
     _nodes: (IpcNode, IpcNode),
     _bus: MemoryBus,
 }
@@ -164,9 +185,10 @@ impl Harness {
         let robot = RobotConfig::default();
         let exec_node = IpcNode::new(&ns, "executive").unwrap();
         let test_node = IpcNode::new(&ns, "harness").unwrap();
+        let clock = Arc::new(ManualClock::default());
         let exec = Executive::new(
             ExecutiveConfig::for_robot(&robot),
-            Arc::new(ManualClock),
+            Arc::clone(&clock) as Arc<dyn Clock>,
             bus.join(),
             FakeArm {
                 cycles: 40,
@@ -183,6 +205,7 @@ impl Harness {
         let base = SimRmpNode::new(bus.join(), SimRmp::new(SimConfig::default()));
         Self {
             exec,
+            clock,
             base,
             scene,
             plans: test_node.publisher().unwrap(),
@@ -193,8 +216,11 @@ impl Harness {
             states: test_node.subscriber().unwrap(),
             now: Duration::ZERO,
             seen: Vec::new(),
+            stops: Vec::new(),
             planner_alive: true,
             fixes_on: true,
+            noisy: None,
+            custom_plan: None,
             _nodes: (exec_node, test_node),
             _bus: bus,
         }
@@ -238,8 +264,16 @@ impl Harness {
     fn cycle(&mut self, count: bool) {
         let now = self.now;
         self.base.poll(now).unwrap();
+        if let Some(noisy) = &mut self.noisy {
+            let (v, w) = self.base.sim().velocity();
+            noisy.observe_motion(f64::from(v).abs() + 0.3 * f64::from(w).abs(), 0.002);
+        }
         if (now.as_millis() % 100) == 0 {
-            let t = self.truth();
+            let truth = self.truth();
+            let t = match &mut self.noisy {
+                Some(noisy) => noisy.global_fix(truth),
+                None => truth,
+            };
             let ns = now.as_nanos() as u64;
             if self.fixes_on {
                 self.poses
@@ -255,7 +289,7 @@ impl Harness {
                     })
                     .unwrap();
                 let (v, w) = self.base.sim().velocity();
-                if v.abs() < 0.005 && w.abs() < 0.005 && t[1] > 4.5 {
+                if v.abs() < 0.005 && w.abs() < 0.005 && t[1] > 4.5 && self.noisy.is_none() {
                     self.poses
                         .publish_with(|m| {
                             m.seq = ns + 1;
@@ -283,7 +317,10 @@ impl Harness {
             if !self.planner_alive {
                 continue;
             }
-            let mut steps = self.plan_for(req.request_id);
+            let mut steps = match &self.custom_plan {
+                Some(p) => p.clone(),
+                None => self.plan_for(req.request_id),
+            };
             if req.request_id > 1 {
                 // A replan: what is left, no station visit (the paper's no-retry: drop it).
                 steps.retain(|s| {
@@ -302,11 +339,19 @@ impl Harness {
                 })
                 .unwrap();
         }
+        // Time stands still while the executive's worker holds the clock.
+        while self.clock.holds.load(Ordering::Acquire) > 0 {
+            std::thread::yield_now();
+        }
         COUNTING.with(|c| c.set(count));
         self.exec.cycle(now);
         COUNTING.with(|c| c.set(false));
         while let Some(ev) = self.events.try_recv().unwrap() {
             if let Ok(k) = ev.kind() {
+                if k == EventKind::GoalReached {
+                    let t = self.truth();
+                    self.stops.push([t[0], t[1]]);
+                }
                 self.seen.push(k);
             }
         }
@@ -337,16 +382,31 @@ impl Harness {
 fn a_whole_mission_runs_and_its_cycles_allocate_nothing_but_iceoryx2_loans() {
     let mut h = Harness::new("mission");
     // Start-up: the driver configures the base, enters tractor mode, the first fix arrives.
-    assert!(h.run_until(Duration::from_secs(5), false, |h| h.exec.state()
-        == MissionState::Running));
+    assert!(
+        h.run_until(Duration::from_secs(5), false, |h| h.exec.state()
+            == MissionState::Running)
+    );
     ALLOCATIONS.store(0, Ordering::Relaxed);
     let published_before = h.exec.stats().published;
     let finished = h.run_until(Duration::from_secs(400), true, |h| {
-        matches!(h.exec.state(), MissionState::Finished | MissionState::Aborted(_))
+        matches!(
+            h.exec.state(),
+            MissionState::Finished | MissionState::Aborted(_)
+        )
     });
     let allocations = ALLOCATIONS.load(Ordering::Relaxed);
-    assert!(finished, "mission did not end: {:?}, events {:?}", h.exec.state(), h.seen);
-    assert_eq!(h.exec.state(), MissionState::Finished, "events {:?}", h.seen);
+    assert!(
+        finished,
+        "mission did not end: {:?}, events {:?}",
+        h.exec.state(),
+        h.seen
+    );
+    assert_eq!(
+        h.exec.state(),
+        MissionState::Finished,
+        "events {:?}",
+        h.seen
+    );
     let stats = h.exec.stats();
     assert_eq!(stats.unloads_ok, 3, "events {:?}", h.seen);
     assert_eq!(stats.unloads_failed, 0);
@@ -354,7 +414,10 @@ fn a_whole_mission_runs_and_its_cycles_allocate_nothing_but_iceoryx2_loans() {
     // 104-byte Rc/Arc block per published sample (upstream: ChunkMutSharedState::new), so the
     // count must equal the messages published, exactly: any other allocation shows up here.
     let published = stats.published - published_before;
-    assert!(published > stats.cycles / 2, "arm state is published every cycle");
+    assert!(
+        published > stats.cycles / 2,
+        "arm state is published every cycle"
+    );
     assert_eq!(
         allocations, published,
         "the executive allocated {allocations} times over {} cycles, publishing {published} messages",
@@ -372,23 +435,34 @@ fn a_whole_mission_runs_and_its_cycles_allocate_nothing_but_iceoryx2_loans() {
     }
     // The base ended near the last goal, standing.
     let t = h.truth();
-    assert!((t[0] - 1.5).abs() < 0.1 && (t[1] - 5.25).abs() < 0.1, "{t:?}");
+    assert!(
+        (t[0] - 1.5).abs() < 0.1 && (t[1] - 5.25).abs() < 0.1,
+        "{t:?}"
+    );
 }
 
 #[test]
 fn a_silent_base_aborts_and_commands_zero() {
     let mut h = Harness::new("silent");
-    assert!(h.run_until(Duration::from_secs(5), false, |h| h.exec.state()
-        == MissionState::Running));
+    assert!(
+        h.run_until(Duration::from_secs(5), false, |h| h.exec.state()
+            == MissionState::Running)
+    );
     // Drive until the base moves.
-    assert!(h.run_until(Duration::from_secs(10), false, |h| h.base.sim().velocity().0.abs()
-        > 0.2));
+    assert!(h.run_until(
+        Duration::from_secs(10),
+        false,
+        |h| h.base.sim().velocity().0.abs() > 0.2
+    ));
     h.base.sim_mut().set_silent(true);
     assert!(h.run_until(Duration::from_secs(2), false, |h| matches!(
         h.exec.state(),
         MissionState::Aborted(_)
     )));
-    assert_eq!(h.exec.state(), MissionState::Aborted(AbortReason::BaseLinkLost));
+    assert_eq!(
+        h.exec.state(),
+        MissionState::Aborted(AbortReason::BaseLinkLost)
+    );
     h.run_until(Duration::from_millis(200), false, |_| false);
     let s = h.last_state().unwrap();
     assert_eq!(s.link_up, 0);
@@ -403,10 +477,15 @@ fn a_silent_base_aborts_and_commands_zero() {
 #[test]
 fn a_dead_planner_stops_the_base_within_its_deceleration_ramp() {
     let mut h = Harness::new("planner-dead");
-    assert!(h.run_until(Duration::from_secs(5), false, |h| h.exec.state()
-        == MissionState::Running));
-    assert!(h.run_until(Duration::from_secs(10), false, |h| h.base.sim().velocity().0.abs()
-        > 0.3));
+    assert!(
+        h.run_until(Duration::from_secs(5), false, |h| h.exec.state()
+            == MissionState::Running)
+    );
+    assert!(h.run_until(
+        Duration::from_secs(10),
+        false,
+        |h| h.base.sim().velocity().0.abs() > 0.3
+    ));
     let speed = f64::from(h.base.sim().velocity().0.abs());
     h.planner_alive = false;
     let died = h.now;
@@ -414,7 +493,10 @@ fn a_dead_planner_stops_the_base_within_its_deceleration_ramp() {
         h.exec.state(),
         MissionState::Aborted(_)
     )));
-    assert_eq!(h.exec.state(), MissionState::Aborted(AbortReason::PlannerLost));
+    assert_eq!(
+        h.exec.state(),
+        MissionState::Aborted(AbortReason::PlannerLost)
+    );
     // Detection within the planner timeout (+ one heartbeat period and one base period).
     assert!(h.now - died <= Duration::from_millis(500 + 100 + 20 + 2));
     assert!(h.run_until(Duration::from_secs(3), false, |h| {
@@ -424,24 +506,146 @@ fn a_dead_planner_stops_the_base_within_its_deceleration_ramp() {
     // Stopped within timeout + the ramp at the robot's deceleration (+ 0.2 s of margin).
     let ramp = speed / RobotConfig::default().accel_mps2;
     let took = (h.now - died).as_secs_f64();
-    assert!(took <= 0.62 + ramp + 0.2, "took {took:.2} s, ramp {ramp:.2} s");
+    assert!(
+        took <= 0.62 + ramp + 0.2,
+        "took {took:.2} s, ramp {ramp:.2} s"
+    );
     assert!(h.seen.contains(&EventKind::PeerLost));
 }
 
 #[test]
 fn missing_localisation_holds_the_base_until_fixes_return() {
     let mut h = Harness::new("no-fixes");
-    assert!(h.run_until(Duration::from_secs(5), false, |h| h.exec.state()
-        == MissionState::Running));
-    assert!(h.run_until(Duration::from_secs(10), false, |h| h.base.sim().velocity().0.abs()
-        > 0.2));
+    assert!(
+        h.run_until(Duration::from_secs(5), false, |h| h.exec.state()
+            == MissionState::Running)
+    );
+    assert!(h.run_until(
+        Duration::from_secs(10),
+        false,
+        |h| h.base.sim().velocity().0.abs() > 0.2
+    ));
     h.fixes_on = false;
     assert!(h.run_until(Duration::from_secs(4), false, |h| {
         h.base.sim().velocity().0.abs() < 0.005
     }));
     assert!(h.seen.contains(&EventKind::StaleInput));
-    assert_eq!(h.exec.state(), MissionState::Running, "holding, not aborted");
+    assert_eq!(
+        h.exec.state(),
+        MissionState::Running,
+        "holding, not aborted"
+    );
     h.fixes_on = true;
-    assert!(h.run_until(Duration::from_secs(5), false, |h| h.base.sim().velocity().0.abs()
-        > 0.1));
+    assert!(h.run_until(
+        Duration::from_secs(5),
+        false,
+        |h| h.base.sim().velocity().0.abs() > 0.1
+    ));
+}
+
+/// Realised minus commanded stops over many legs in closed loop (localisation with the world's
+/// per-leg bias, the follower, the driver, the simulated base) against the trial simulator's
+/// N(0, sigma^2 I): same mean and spread (two-sample Kolmogorov-Smirnov at 5 %).
+#[test]
+fn realised_stops_follow_the_trial_simulators_navigation_noise() {
+    use hil_world::fixes::{FixModel, FixSimulator};
+    use rand::SeedableRng;
+    let mut h = Harness::new("nav-noise");
+    let robot = RobotConfig::default();
+    let sigma = robot.nav_noise_sigma_m;
+    h.noisy = Some(FixSimulator::new(
+        FixModel {
+            still_before_leg_s: 0.3,
+            ..FixModel::for_sigma(sigma)
+        },
+        11,
+    ));
+    // 120 legs back and forth across the empty room (2.5 m each).
+    let a = [-1.5, 3.5, 0.0];
+    let b = [1.0, 3.5, std::f64::consts::PI];
+    let goals: Vec<[f64; 3]> = (0..120).map(|k| if k % 2 == 0 { b } else { a }).collect();
+    h.custom_plan = Some(
+        goals
+            .iter()
+            .map(|g| TaskStep::navigate(g[0], g[1], g[2], 6.0))
+            .collect(),
+    );
+    assert!(
+        h.run_until(Duration::from_secs(10), false, |h| h.exec.state()
+            == MissionState::Running)
+    );
+    let mut residuals = Vec::new();
+    let mut seen = h.seen.len();
+    let finished = h.run_until(Duration::from_secs(3000), false, |h| {
+        matches!(
+            h.exec.state(),
+            MissionState::Finished | MissionState::Aborted(_)
+        )
+    });
+    let _ = finished;
+    // Re-run, recording at every GoalReached (the harness keeps the event list).
+    let _ = &mut seen;
+    assert_eq!(h.exec.state(), MissionState::Finished, "{:?}", h.seen);
+    residuals.extend(h.stops.iter().copied());
+    assert!(
+        residuals.len() >= 100,
+        "{} legs; events {:?}",
+        residuals.len(),
+        h.seen
+    );
+    // Pair each stop with its commanded goal.
+    let closed: Vec<f64> = residuals
+        .iter()
+        .enumerate()
+        .flat_map(|(k, stop)| {
+            let g = goals[k];
+            [stop[0] - g[0], stop[1] - g[1]]
+        })
+        .collect();
+    // The trial simulator's draws for as many legs.
+    let scene = Scene::empty_paper_room();
+    let mut sim = trial_sim::TrialSimulator::new(&scene, &robot);
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+    let mut trial = Vec::new();
+    for _ in 0..residuals.len() {
+        let o = sim.run([0.0, 6.0, 1.3], world::Side::Near, (0.0, 5.2), &mut rng);
+        trial.push(o.realised.x_m);
+        trial.push(o.realised.y_m - 5.2);
+    }
+    let stats = |v: &[f64]| {
+        let n = v.len() as f64;
+        let m = v.iter().sum::<f64>() / n;
+        let sd = (v.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (n - 1.0)).sqrt();
+        (m, sd)
+    };
+    let (m_c, sd_c) = stats(&closed);
+    let (m_t, sd_t) = stats(&trial);
+    println!(
+        "closed loop: mean {m_c:+.4} sd {sd_c:.4}; trial simulator: mean {m_t:+.4} sd {sd_t:.4}"
+    );
+    assert!(
+        m_c.abs() < 3.0 * sigma / (closed.len() as f64).sqrt() + 0.005,
+        "mean {m_c}"
+    );
+    assert!(
+        (sd_c / sigma - 1.0).abs() < 0.15,
+        "sd {sd_c} vs sigma {sigma}"
+    );
+    // Two-sample KS.
+    let mut x = closed.clone();
+    let mut y = trial.clone();
+    x.sort_by(f64::total_cmp);
+    y.sort_by(f64::total_cmp);
+    let (mut i, mut j, mut d) = (0usize, 0usize, 0.0f64);
+    while i < x.len() && j < y.len() {
+        if x[i] <= y[j] {
+            i += 1;
+        } else {
+            j += 1;
+        }
+        d = d.max((i as f64 / x.len() as f64 - j as f64 / y.len() as f64).abs());
+    }
+    let (n, m) = (x.len() as f64, y.len() as f64);
+    let critical = 1.36 * ((n + m) / (n * m)).sqrt();
+    assert!(d < critical, "KS distance {d:.3} >= {critical:.3}");
 }

@@ -530,8 +530,8 @@ mod tests {
     /// The layouts are the protocol between processes: a change must bump the `/vN` type names.
     #[test]
     fn wire_sizes_are_fixed() {
-        assert_eq!(size_of::<TaskStep>(), 96);
-        assert_eq!(size_of::<TaskPlanMsg>(), 88 + 96 * MAX_TASK_STEPS);
+        assert_eq!(size_of::<TaskStep>(), 88);
+        assert_eq!(size_of::<TaskPlanMsg>(), 80 + 88 * MAX_TASK_STEPS);
         assert_eq!(size_of::<ReplanRequestMsg>(), 88);
         assert_eq!(size_of::<LocationHeatmap>(), 40 + 4 * 2048);
         assert_eq!(size_of::<BasePoseMsg>(), 64);

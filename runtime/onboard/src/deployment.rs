@@ -35,7 +35,7 @@ use serde::Deserialize;
 #[non_exhaustive]
 pub enum DeploymentError {
     /// The file could not be read.
-    #[error("reading deployment file {path}: {source}")]
+    #[error("reading deployment file {path}")]
     Read {
         /// The file.
         path: PathBuf,

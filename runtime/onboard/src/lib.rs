@@ -5,7 +5,7 @@
 //! over RTDE at 500 Hz, following the plan, reporting on `events`). Both read a deployment
 //! file and the runtime clock; neither links a simulator (a test checks the dependency tree).
 
+pub mod deployment;
 pub mod executive;
 pub mod localisation;
-pub mod deployment;
 pub mod planner_node;

@@ -70,7 +70,7 @@ pub const HEARTBEAT_PERIOD: Duration = Duration::from_millis(100);
 #[non_exhaustive]
 pub enum PlannerNodeError {
     /// The map/task scene file.
-    #[error("map file {path}: {source}")]
+    #[error("map file {path}")]
     Map {
         /// The file.
         path: std::path::PathBuf,
@@ -78,10 +78,10 @@ pub enum PlannerNodeError {
         source: world::SceneError,
     },
     /// The robot file.
-    #[error("robot file: {0}")]
+    #[error("robot file")]
     Robot(#[from] world::RobotError),
     /// The model file.
-    #[error("model {path}: {source}")]
+    #[error("model {path}")]
     Model {
         /// The file.
         path: std::path::PathBuf,
@@ -110,14 +110,14 @@ pub enum RequestError {
     #[error("message: {0}")]
     Message(#[from] MessageError),
     /// A view could not be cut from the frame.
-    #[error("cutting the {side} view of object {object}: {source}")]
+    #[error("cutting the {side} view of object {object}: {error}")]
     Cut {
         /// Object index in the map.
         object: usize,
         /// Side.
         side: Side,
         /// Why.
-        source: CameraError,
+        error: CameraError,
     },
     /// Psi failed.
     #[error("Psi: {0}")]
@@ -469,11 +469,11 @@ impl PlannerNode {
         let m = 2 * objects.len();
         for (i, crop) in self.crops[..m].iter_mut().enumerate() {
             let side = side_of_location(i);
-            cut_view(pixels, &layout, targets[i / 2][0], side, crop).map_err(|source| {
+            cut_view(pixels, &layout, targets[i / 2][0], side, crop).map_err(|error| {
                 RequestError::Cut {
                     object: objects[i / 2],
                     side,
-                    source,
+                    error,
                 }
             })?;
         }

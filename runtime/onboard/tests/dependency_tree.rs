@@ -47,7 +47,10 @@ fn onboard_binaries_link_no_simulator() {
         .filter_map(|l| l.split_whitespace().next())
         .collect();
     assert!(names.contains(&"grop-onboard"), "{tree}");
-    assert!(names.contains(&"rmp-base") && names.contains(&"ur5e"), "{tree}");
+    assert!(
+        names.contains(&"rmp-base") && names.contains(&"ur5e"),
+        "{tree}"
+    );
     for sim in SIMULATION_CRATES {
         assert!(
             !names.contains(&sim),

@@ -60,7 +60,9 @@ fn parse_size(s: &str) -> anyhow::Result<(u32, u32)> {
         .split_once('x')
         .with_context(|| format!("--camera {s:?}: expected WIDTHxHEIGHT"))?;
     let w: u32 = w.parse().with_context(|| format!("--camera width {w:?}"))?;
-    let h: u32 = h.parse().with_context(|| format!("--camera height {h:?}"))?;
+    let h: u32 = h
+        .parse()
+        .with_context(|| format!("--camera height {h:?}"))?;
     anyhow::ensure!(
         (640..=1280).contains(&w) && (480..=960).contains(&h),
         "--camera {s}: must be between 640x480 and 1280x960"
@@ -85,7 +87,8 @@ fn main() -> anyhow::Result<()> {
     config.pace = args.pace.filter(|p| *p > 0.0);
     config.camera_px = parse_size(&args.camera)?;
     config.max_sim_time = Duration::from_secs_f64(args.max_sim_s.max(1.0));
-    config.progress_every = (args.progress_s > 0.0).then(|| Duration::from_secs_f64(args.progress_s));
+    config.progress_every =
+        (args.progress_s > 0.0).then(|| Duration::from_secs_f64(args.progress_s));
     config.expect = args
         .expect
         .split(',')
@@ -97,7 +100,13 @@ fn main() -> anyhow::Result<()> {
     let c = world.config();
     println!(
         "grop-world ready clock=sim:{} namespace={} bus={} rtde={} dashboard={} secondary={} gripper={}",
-        c.clock_name, c.namespace, c.bus_name, ports.rtde, ports.dashboard, ports.secondary, ports.gripper
+        c.clock_name,
+        c.namespace,
+        c.bus_name,
+        ports.rtde,
+        ports.dashboard,
+        ports.secondary,
+        ports.gripper
     );
     std::io::stdout().flush().context("flushing stdout")?;
     let report = world.run(&|| STOP.load(Ordering::Relaxed));

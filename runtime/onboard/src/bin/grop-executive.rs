@@ -28,7 +28,11 @@ extern "C" fn on_signal(_signal: libc::c_int) {
 }
 
 #[derive(Parser, Debug)]
-#[command(name = "grop-executive", about = "grop executive: base and arm loops", version)]
+#[command(
+    name = "grop-executive",
+    about = "grop executive: base and arm loops",
+    version
+)]
 struct Args {
     /// Deployment file (TOML).
     #[arg(long, value_name = "FILE")]

@@ -48,8 +48,7 @@ use world::{RobotConfig, Scene};
 use crate::localisation::{FixOutcome, Localiser, LocaliserConfig, PlanarPose, wrap};
 use paths::{MAX_PATH_POINTS, PathFailure, PathWorker};
 use unload::{
-    ArmFault, ArmPort, PlaceJoints, TrayGeometry, UnloadFailure, UnloadProgress,
-    UnloadSequence,
+    ArmFault, ArmPort, PlaceJoints, TrayGeometry, UnloadFailure, UnloadProgress, UnloadSequence,
 };
 
 /// What the executive needs of the arm besides the unload skills.
@@ -332,7 +331,7 @@ impl<B: CanBus, A: ArmDevice> Executive<B, A> {
         let tray = unload::solve_tray(&config.robot.place, &config.tray_slots)
             .map_err(ExecutiveError::Tray)?;
         let grid = Arc::new(OccupancyGrid::from_scene(&scene, &config.robot));
-        let paths = PathWorker::start(grid).map_err(ExecutiveError::Worker)?;
+        let paths = PathWorker::start(grid, Arc::clone(&clock)).map_err(ExecutiveError::Worker)?;
         let ports = Ports {
             base_state: node.publisher().map_err(ipc_err)?,
             arm_state: node.publisher().map_err(ipc_err)?,
@@ -422,7 +421,12 @@ impl<B: CanBus, A: ArmDevice> Executive<B, A> {
                 return self.state;
             }
             self.cycle(deadline);
-            if exit_when_done && matches!(self.state, MissionState::Finished | MissionState::Aborted(_)) {
+            if exit_when_done
+                && matches!(
+                    self.state,
+                    MissionState::Finished | MissionState::Aborted(_)
+                )
+            {
                 return self.state;
             }
             deadline += self.config.cycle;
@@ -579,7 +583,11 @@ impl<B: CanBus, A: ArmDevice> Executive<B, A> {
             self.velocity = Twist::ZERO;
             if !self.stale_reported {
                 self.stale_reported = true;
-                self.event(EventKind::StaleInput, now, format_args!("no localisation fix: holding"));
+                self.event(
+                    EventKind::StaleInput,
+                    now,
+                    format_args!("no localisation fix: holding"),
+                );
             }
         } else if !self.localiser.is_stale(ns(now)) {
             self.stale_reported = false;
@@ -635,7 +643,11 @@ impl<B: CanBus, A: ArmDevice> Executive<B, A> {
 
     fn take_plan(&mut self, plan: &TaskPlanMsg, now: Duration) {
         let Ok(steps) = plan.steps() else {
-            self.event(EventKind::StaleInput, now, format_args!("plan {} rejected: malformed", plan.plan_id));
+            self.event(
+                EventKind::StaleInput,
+                now,
+                format_args!("plan {} rejected: malformed", plan.plan_id),
+            );
             return;
         };
         self.stats.plans += 1;
@@ -686,7 +698,11 @@ impl<B: CanBus, A: ArmDevice> Executive<B, A> {
         self.stats.published += 1;
         let _ = self.ports.requests.publish(&req);
         let id = self.request_id;
-        self.event(EventKind::ReplanRequested, now, format_args!("request {id} ({reason:?})"));
+        self.event(
+            EventKind::ReplanRequested,
+            now,
+            format_args!("request {id} ({reason:?})"),
+        );
     }
 
     fn current_step(&self) -> Option<TaskStep> {
@@ -698,7 +714,11 @@ impl<B: CanBus, A: ArmDevice> Executive<B, A> {
         self.phase = None;
         if self.step_index >= self.steps.len() && self.request_sent.is_none() {
             self.state = MissionState::Finished;
-            let (plan, ok, failed) = (self.plan_id, self.stats.unloads_ok, self.stats.unloads_failed);
+            let (plan, ok, failed) = (
+                self.plan_id,
+                self.stats.unloads_ok,
+                self.stats.unloads_failed,
+            );
             self.event(
                 EventKind::PlanFinished,
                 now,
@@ -714,7 +734,11 @@ impl<B: CanBus, A: ArmDevice> Executive<B, A> {
         let Some(step) = self.current_step() else {
             if self.steps.is_empty() && self.stats.plans > 0 {
                 self.state = MissionState::Finished;
-                self.event(EventKind::PlanFinished, now, format_args!("nothing left to do"));
+                self.event(
+                    EventKind::PlanFinished,
+                    now,
+                    format_args!("nothing left to do"),
+                );
             }
             return;
         };
@@ -729,34 +753,37 @@ impl<B: CanBus, A: ArmDevice> Executive<B, A> {
                 until: now + self.config.load_wait,
             }),
             (Ok(TaskStepKind::Unload), None) => Some(Phase::AwaitTableFix { since: now }),
-            (Ok(_), Some(Phase::PathRequested { id, since })) => {
-                match self.paths.try_answer() {
-                    Some((answer_id, Ok(points))) if answer_id == id => {
-                        match self.follower.set_path(&points) {
-                            Ok(()) => {
-                                let planned = step.travel_cost_s.max(pose.distance_m(&PlanarPose::new(step.x_m, step.y_m, 0.0)) / self.config.robot.speed_mps.max(0.05));
-                                Some(Phase::Following {
-                                    deadline: now
-                                        + Duration::from_secs_f64(planned * self.config.leg_time_factor)
-                                        + self.config.leg_slack,
-                                })
-                            }
-                            Err(_) => self.leg_failed(&step, now, "path refused by the follower"),
+            (Ok(_), Some(Phase::PathRequested { id, since })) => match self.paths.try_answer() {
+                Some((answer_id, Ok(points))) if answer_id == id => {
+                    match self.follower.set_path(&points) {
+                        Ok(()) => {
+                            let planned = step.travel_cost_s.max(
+                                pose.distance_m(&PlanarPose::new(step.x_m, step.y_m, 0.0))
+                                    / self.config.robot.speed_mps.max(0.05),
+                            );
+                            Some(Phase::Following {
+                                deadline: now
+                                    + Duration::from_secs_f64(
+                                        planned * self.config.leg_time_factor,
+                                    )
+                                    + self.config.leg_slack,
+                            })
                         }
+                        Err(_) => self.leg_failed(&step, now, "path refused by the follower"),
                     }
-                    Some((answer_id, Err(e))) if answer_id == id => {
-                        let why = match e {
-                            PathFailure::NoRoute => "no route on the map",
-                            PathFailure::WorkerGone => "path worker gone",
-                        };
-                        self.leg_failed(&step, now, why)
-                    }
-                    _ if now.saturating_sub(since) > Duration::from_secs(5) => {
-                        self.leg_failed(&step, now, "no path within 5 s")
-                    }
-                    _ => Some(Phase::PathRequested { id, since }),
                 }
-            }
+                Some((answer_id, Err(e))) if answer_id == id => {
+                    let why = match e {
+                        PathFailure::NoRoute => "no route on the map",
+                        PathFailure::WorkerGone => "path worker gone",
+                    };
+                    self.leg_failed(&step, now, why)
+                }
+                _ if now.saturating_sub(since) > Duration::from_secs(5) => {
+                    self.leg_failed(&step, now, "no path within 5 s")
+                }
+                _ => Some(Phase::PathRequested { id, since }),
+            },
             (Ok(_), Some(Phase::Following { deadline })) => {
                 let p = Pose2 {
                     x_m: pose.x_m as f32,
@@ -771,7 +798,9 @@ impl<B: CanBus, A: ArmDevice> Executive<B, A> {
                             self.velocity = t;
                             Some(Phase::Following { deadline })
                         }
-                        FollowStep::Arrived | FollowStep::NoPath => Some(Phase::Aligning { deadline }),
+                        FollowStep::Arrived | FollowStep::NoPath => {
+                            Some(Phase::Aligning { deadline })
+                        }
                     }
                 }
             }
@@ -787,7 +816,11 @@ impl<B: CanBus, A: ArmDevice> Executive<B, A> {
                     let max_w = self.config.robot.yaw_rate_radps;
                     let w = (self.config.align_gain * err).clamp(-max_w, max_w);
                     // A floor so the last degrees do not take forever against the limiter.
-                    let w = if w.abs() < 0.05 { 0.05_f64.copysign(err) } else { w };
+                    let w = if w.abs() < 0.05 {
+                        0.05_f64.copysign(err)
+                    } else {
+                        w
+                    };
                     self.velocity = Twist::new(0.0, w as f32);
                     Some(Phase::Aligning { deadline })
                 }
@@ -798,7 +831,10 @@ impl<B: CanBus, A: ArmDevice> Executive<B, A> {
                     self.event(
                         EventKind::GoalReached,
                         now,
-                        format_args!("at ({:.3}, {:.3}) believed, {:.3} m from goal", pose.x_m, pose.y_m, err),
+                        format_args!(
+                            "at ({:.3}, {:.3}) believed, {:.3} m from goal",
+                            pose.x_m, pose.y_m, err
+                        ),
                     );
                     self.next_step(now);
                     None
@@ -819,7 +855,11 @@ impl<B: CanBus, A: ArmDevice> Executive<B, A> {
                             }
                         }
                     }
-                    self.event(EventKind::Loaded, now, format_args!("objects {:#x} on the tray", step.load_mask));
+                    self.event(
+                        EventKind::Loaded,
+                        now,
+                        format_args!("objects {:#x} on the tray", step.load_mask),
+                    );
                     self.next_step(now);
                     None
                 } else {
@@ -839,7 +879,11 @@ impl<B: CanBus, A: ArmDevice> Executive<B, A> {
             (Ok(_), Some(Phase::Unloading(seq))) => Some(Phase::Unloading(seq)), // arm cycle drives it
             (Err(_), _) => {
                 let index = self.step_index;
-                self.event(EventKind::StaleInput, now, format_args!("step {index} has no known kind: skipped"));
+                self.event(
+                    EventKind::StaleInput,
+                    now,
+                    format_args!("step {index} has no known kind: skipped"),
+                );
                 self.next_step(now);
                 None
             }
@@ -849,7 +893,10 @@ impl<B: CanBus, A: ArmDevice> Executive<B, A> {
     fn start_leg(&mut self, step: &TaskStep, pose: PlanarPose, now: Duration) -> Phase {
         let id = self.next_path_id;
         self.next_path_id += 1;
-        match self.paths.request(id, (pose.x_m, pose.y_m), (step.x_m, step.y_m)) {
+        match self
+            .paths
+            .request(id, (pose.x_m, pose.y_m), (step.x_m, step.y_m))
+        {
             Ok(true) => Phase::PathRequested { id, since: now },
             // Queue full (cannot happen with one leg at a time): try again next period.
             Ok(false) | Err(_) => Phase::PathRequested { id: 0, since: now },
@@ -857,7 +904,11 @@ impl<B: CanBus, A: ArmDevice> Executive<B, A> {
     }
 
     fn leg_failed(&mut self, step: &TaskStep, now: Duration, why: &str) -> Option<Phase> {
-        self.event(EventKind::LegFinished, now, format_args!("leg to ({:.2}, {:.2}) failed: {why}", step.x_m, step.y_m));
+        self.event(
+            EventKind::LegFinished,
+            now,
+            format_args!("leg to ({:.2}, {:.2}) failed: {why}", step.x_m, step.y_m),
+        );
         // The unload that needed this leg cannot happen from here: let the planner decide.
         if let Some(next) = self.steps.get(self.step_index + 1).copied() {
             if next.kind() == Ok(TaskStepKind::Unload) {
@@ -880,9 +931,13 @@ impl<B: CanBus, A: ArmDevice> Executive<B, A> {
         };
         self.scene
             .obstacle_boxes_into(&self.config.robot, base, &mut self.obstacles);
-        let solved: Result<PlaceJoints, UnloadFailure> =
-            unload::solve_place(&self.config.robot.place, base, step.target_m, &self.obstacles)
-                .map_err(UnloadFailure::Unreachable);
+        let solved: Result<PlaceJoints, UnloadFailure> = unload::solve_place(
+            &self.config.robot.place,
+            base,
+            step.target_m,
+            &self.obstacles,
+        )
+        .map_err(UnloadFailure::Unreachable);
         match (slot, solved) {
             (Some(slot), Ok(joints)) => Phase::Unloading(UnloadSequence::new(slot, joints)),
             (None, _) => {
@@ -898,7 +953,9 @@ impl<B: CanBus, A: ArmDevice> Executive<B, A> {
     }
 
     fn unload_done(&mut self, now: Duration, failure: Option<UnloadFailure>) {
-        let Some(step) = self.current_step() else { return };
+        let Some(step) = self.current_step() else {
+            return;
+        };
         match failure {
             None => {
                 self.stats.unloads_ok += 1;
@@ -909,7 +966,11 @@ impl<B: CanBus, A: ArmDevice> Executive<B, A> {
                     }
                 }
                 self.remaining &= !(1u64 << object.min(63));
-                self.event(EventKind::UnloadSucceeded, now, format_args!("object {object} released on its target"));
+                self.event(
+                    EventKind::UnloadSucceeded,
+                    now,
+                    format_args!("object {object} released on its target"),
+                );
                 self.next_step(now);
             }
             Some(UnloadFailure::Arm(fault)) => {
@@ -929,7 +990,11 @@ impl<B: CanBus, A: ArmDevice> Executive<B, A> {
 
     fn finish_failed_unload(&mut self, step: &TaskStep, now: Duration, failure: UnloadFailure) {
         self.stats.unloads_failed += 1;
-        self.event(EventKind::UnloadFailed, now, format_args!("object {}: {failure:?}", step.object_index));
+        self.event(
+            EventKind::UnloadFailed,
+            now,
+            format_args!("object {}: {failure:?}", step.object_index),
+        );
         self.request_plan(ReplanReason::UnloadFailed, now, Some(step));
     }
 
@@ -954,9 +1019,17 @@ impl<B: CanBus, A: ArmDevice> Executive<B, A> {
             AbortReason::ClockLost | AbortReason::Shutdown => EventKind::MissionAborted,
         };
         if kind != EventKind::MissionAborted {
-            self.event(kind, now, format_args!("{reason:?}: base to zero, arm stopped"));
+            self.event(
+                kind,
+                now,
+                format_args!("{reason:?}: base to zero, arm stopped"),
+            );
         }
-        self.event(EventKind::MissionAborted, now, format_args!("{reason:?}; restart the executive to re-arm"));
+        self.event(
+            EventKind::MissionAborted,
+            now,
+            format_args!("{reason:?}; restart the executive to re-arm"),
+        );
     }
 
     fn event(&mut self, kind: EventKind, now: Duration, args: std::fmt::Arguments<'_>) {

@@ -78,7 +78,11 @@ pub struct TrayGeometry {
 
 /// Where a tray slot's object sits, base frame (x forward, z up), m.
 pub fn default_tray_slots() -> [[f64; 3]; 3] {
-    [[-0.20, -0.18, 1.10], [-0.20, 0.0, 1.10], [-0.20, 0.18, 1.10]]
+    [
+        [-0.20, -0.18, 1.10],
+        [-0.20, 0.0, 1.10],
+        [-0.20, 0.18, 1.10],
+    ]
 }
 
 /// Solves the tray's joints from slot positions in the base frame (the base at the origin, no
@@ -101,7 +105,10 @@ pub fn solve_tray(cfg: &PlaceConfig, slots: &[[f64; 3]]) -> Result<TrayGeometry,
         pick_above.push(above.joints);
     }
     // Carry: above the middle slot, raised further, so the arm stays inside the base outline.
-    let mid = slots.get(slots.len() / 2).copied().unwrap_or([-0.2, 0.0, 1.1]);
+    let mid = slots
+        .get(slots.len() / 2)
+        .copied()
+        .unwrap_or([-0.2, 0.0, 1.1]);
     let carry = plan_place(
         cfg,
         origin,
@@ -231,12 +238,19 @@ impl UnloadSequence {
         self.stage
     }
 
-    fn start(&self, arm: &mut dyn ArmPort, tray: &TrayGeometry, now: Duration) -> Result<(), ArmFault> {
+    fn start(
+        &self,
+        arm: &mut dyn ArmPort,
+        tray: &TrayGeometry,
+        now: Duration,
+    ) -> Result<(), ArmFault> {
         let slot = self.slot.min(tray.pick.len().saturating_sub(1));
         match self.stage {
             Stage::OpenFirst | Stage::Release => arm.start_gripper(false, now),
             Stage::Grasp => arm.start_gripper(true, now),
-            Stage::AboveSlot | Stage::LiftFromSlot => arm.start_move_joints(&tray.pick_above[slot], now),
+            Stage::AboveSlot | Stage::LiftFromSlot => {
+                arm.start_move_joints(&tray.pick_above[slot], now)
+            }
             Stage::AtSlot => arm.start_move_joints(&tray.pick[slot], now),
             Stage::AboveTarget | Stage::Retreat => arm.start_move_joints(&self.joints.above, now),
             Stage::AtTarget => arm.start_move_joints(&self.joints.place, now),
@@ -245,7 +259,12 @@ impl UnloadSequence {
     }
 
     /// Advances: starts the current stage's skill, or polls it and moves to the next stage.
-    pub fn poll(&mut self, arm: &mut dyn ArmPort, tray: &TrayGeometry, now: Duration) -> UnloadProgress {
+    pub fn poll(
+        &mut self,
+        arm: &mut dyn ArmPort,
+        tray: &TrayGeometry,
+        now: Duration,
+    ) -> UnloadProgress {
         if !self.started {
             if let Err(fault) = self.start(arm, tray, now) {
                 return UnloadProgress::Failed(UnloadFailure::Arm(fault));
@@ -355,8 +374,16 @@ mod tests {
         assert_eq!(
             arm.log,
             [
-                "open", "move 2.00", "move 1.00", "close", "move 2.00", "move 5.00", "move 4.00",
-                "open", "move 5.00", "move 3.00"
+                "open",
+                "move 2.00",
+                "move 1.00",
+                "close",
+                "move 2.00",
+                "move 5.00",
+                "move 4.00",
+                "open",
+                "move 5.00",
+                "move 3.00"
             ]
         );
     }

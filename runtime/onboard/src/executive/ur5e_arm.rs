@@ -63,7 +63,13 @@ impl ArmPort for Ur5eDevice {
     fn start_move_joints(&mut self, q: &Joints, now: Duration) -> Result<(), ArmFault> {
         let s = self.settings;
         self.arm
-            .start_move_joints(*q, s.joint_speed_radps, s.joint_accel_radps2, s.move_timeout, now)
+            .start_move_joints(
+                *q,
+                s.joint_speed_radps,
+                s.joint_accel_radps2,
+                s.move_timeout,
+                now,
+            )
             .map_err(|e| {
                 log::warn!("arm: move refused: {e}");
                 fault(&e)
@@ -89,7 +95,10 @@ impl ArmPort for Ur5eDevice {
             Ok(SkillProgress::Running) => Ok(SkillStatus::Running),
             Ok(SkillProgress::Idle) => Ok(SkillStatus::Done { object_held: false }),
             Ok(SkillProgress::Done(outcome)) => Ok(SkillStatus::Done {
-                object_held: matches!(outcome, SkillOutcome::Gripper(GripOutcome::ObjectWhileClosing)),
+                object_held: matches!(
+                    outcome,
+                    SkillOutcome::Gripper(GripOutcome::ObjectWhileClosing)
+                ),
             }),
             Err(e) => {
                 log::warn!("arm: skill failed: {e}");
@@ -117,9 +126,9 @@ impl ArmDevice for Ur5eDevice {
 
     fn stop(&mut self, now: Duration) {
         // Best effort; on a lost link the driver has already sent stopj by every channel left.
-        if let Err(e) = self
-            .arm
-            .start_stop(self.settings.stop_decel_radps2, Duration::from_secs(2), now)
+        if let Err(e) =
+            self.arm
+                .start_stop(self.settings.stop_decel_radps2, Duration::from_secs(2), now)
         {
             log::warn!("arm: stop: {e}");
         }

@@ -1,0 +1,215 @@
+//! The closed loop as processes: `grop-world` and the unchanged onboard binaries
+//! (`grop-planner`, `grop-executive`) run a mission in simulated time; killing a process mid-
+//! mission stops the base and the arm by the mechanism DESIGN.md names, and the report says so.
+//!
+//! The binaries are the ones `cargo test --workspace` (or `cargo build`) put next to this test's
+//! folder.
+
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+use hil_world::mission::{self, MissionSpec, RunningMission};
+use hil_world::objects::ObjectState;
+use hil_world::report::{MissionEnd, WorldReport};
+use world::RobotConfig;
+
+fn model() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../models/psi-fcn.onnx")
+}
+
+fn spec(test: &str, seed: u64) -> MissionSpec {
+    let dir = std::env::temp_dir().join(mission::unique_run_name(&format!("grop-{test}")));
+    MissionSpec {
+        dir,
+        scene: world::generate::evaluation_scene(seed, 15, 3),
+        robot: RobotConfig::default(),
+        model: model(),
+        method: "grop".into(),
+        paper_smp: false,
+        retry: "none".into(),
+        seed,
+        pace: None,
+        camera_px: (640, 480),
+        max_sim_s: 400.0,
+        progress_s: 0.1,
+    }
+}
+
+fn start(spec: &MissionSpec) -> RunningMission {
+    let bins = mission::binaries(true).expect("the world and onboard binaries build");
+    mission::start(spec, &bins).expect("mission starts")
+}
+
+fn finish(running: RunningMission) -> WorldReport {
+    running
+        .finish(Duration::from_secs(600), &mut |_| {})
+        .expect("the world reports")
+}
+
+/// A progress line's value of `key` (`progress t=1.0 x=.. v=0.35 arm=0.0 ...`).
+fn value(line: &str, key: &str) -> Option<f64> {
+    line.split_whitespace()
+        .find_map(|kv| kv.strip_prefix(&format!("{key}=")))
+        .and_then(|v| v.split('/').next())
+        .and_then(|v| v.parse().ok())
+}
+
+#[test]
+fn a_mission_runs_from_camera_frame_to_can_frame_and_is_reported() {
+    let spec = spec("mission", 4);
+    let running = start(&spec);
+    let report = finish(running);
+    assert_eq!(
+        report.end,
+        MissionEnd::Finished,
+        "events: {:#?}",
+        report.events
+    );
+    assert!(!report.plans.is_empty());
+    let first = &report.plans[0];
+    assert_eq!(
+        first.unloads.len(),
+        3,
+        "the first plan unloads every object"
+    );
+    assert!(first.decision_us > 0);
+    assert!(report.timing.frames >= 1, "camera frames were published");
+    // Every object was loaded and then either released (and judged) or given up on the tray.
+    for o in &report.objects {
+        assert!(
+            !matches!(o.state, ObjectState::AtStation | ObjectState::Held),
+            "{o:?}"
+        );
+    }
+    // The legs ended near their goals, as the localisation noise allows (10 sigma).
+    assert!(report.legs.len() >= 2, "{:?}", report.legs);
+    for leg in &report.legs {
+        let d = (leg.realised[0] - leg.commanded[0]).hypot(leg.realised[1] - leg.commanded[1]);
+        assert!(d < 1.0, "{leg:?}");
+    }
+    let kinds: Vec<&str> = report.events.iter().map(|e| e.kind.as_str()).collect();
+    for k in [
+        "ReplanRequested",
+        "PlanStarted",
+        "GoalReached",
+        "Loaded",
+        "PlanFinished",
+    ] {
+        assert!(kinds.contains(&k), "no {k} in {kinds:?}");
+    }
+    assert_eq!(
+        report.placed,
+        report
+            .events
+            .iter()
+            .filter(|e| e.kind == "ObjectJudged" && e.detail.contains(": Placed,"))
+            .count()
+    );
+}
+
+#[test]
+fn killing_the_executive_while_driving_stops_the_base_by_its_own_timeout() {
+    let spec = spec("kill-exec-base", 5);
+    let mut running = start(&spec);
+    let moving = running.wait_for_line(
+        Duration::from_secs(120),
+        |l| value(l, "v").is_some_and(|v| v > 0.3),
+        &mut |_| {},
+    );
+    assert!(moving.is_some(), "the base never drove");
+    running.kill_executive();
+    let report = finish(running);
+    assert_eq!(report.end, MissionEnd::ExecutiveDied);
+    let death = report
+        .deaths
+        .iter()
+        .find(|d| d.name == "grop-executive")
+        .expect("the world noticed the executive die");
+    assert!(death.base_speed_then_mps > 0.2, "{death:?}");
+    let stopped = death.base_stopped_at_s.expect("the base stopped");
+    // The base's own loss-of-command timeout (0.5 s) plus its deceleration ramp (NVM 3.9 m/s^2)
+    // plus the clock's detection poll; generous margin, no wall time involved.
+    let ramp = death.base_speed_then_mps / 3.9;
+    assert!(
+        stopped - death.t_s <= 0.5 + ramp + 0.2,
+        "stopped {:.2} s after the death",
+        stopped - death.t_s
+    );
+    assert!(
+        stopped - death.t_s >= 0.4,
+        "the base should coast on its last command until its own timeout"
+    );
+}
+
+#[test]
+fn killing_the_executive_while_the_arm_moves_stops_the_arm_by_the_controller_watchdog() {
+    let spec = spec("kill-exec-arm", 4);
+    let mut running = start(&spec);
+    let moving = running.wait_for_line(
+        Duration::from_secs(300),
+        |l| value(l, "arm").is_some_and(|v| v > 0.3),
+        &mut |_| {},
+    );
+    assert!(moving.is_some(), "the arm never moved");
+    running.kill_executive();
+    let report = finish(running);
+    let death = report
+        .deaths
+        .iter()
+        .find(|d| d.name == "grop-executive")
+        .expect("the world noticed the executive die");
+    assert!(death.arm_speed_then_radps > 0.2, "{death:?}");
+    let stopped = death.arm_stopped_at_s.expect("the arm stopped");
+    // The RTDE watchdog demands 10 Hz (0.1 s), then stopj at 4 rad/s^2 (a joint at 1.5 rad/s
+    // needs 0.4 s); margin for the detection poll.
+    assert!(
+        stopped - death.t_s <= 0.1 + death.arm_speed_then_radps / 4.0 + 0.3,
+        "arm stopped {:.2} s after the death",
+        stopped - death.t_s
+    );
+}
+
+#[test]
+fn killing_the_planner_makes_the_executive_stop_the_base_and_abort() {
+    let spec = spec("kill-planner", 5);
+    let mut running = start(&spec);
+    let moving = running.wait_for_line(
+        Duration::from_secs(120),
+        |l| value(l, "v").is_some_and(|v| v > 0.3),
+        &mut |_| {},
+    );
+    assert!(moving.is_some(), "the base never drove");
+    running.kill_planner();
+    let report = finish(running);
+    assert_eq!(
+        report.end,
+        MissionEnd::Aborted,
+        "events: {:#?}",
+        report.events
+    );
+    let death = report
+        .deaths
+        .iter()
+        .find(|d| d.name == "grop-planner")
+        .expect("the clock noticed the planner die");
+    let lost = report
+        .events
+        .iter()
+        .find(|e| e.kind == "PeerLost")
+        .expect("the executive reported the planner lost");
+    // Heartbeats every 100 ms, declared dead after 500 ms, checked at 50 Hz.
+    assert!(
+        lost.t_s - death.t_s <= 0.65,
+        "{} vs {}",
+        lost.t_s,
+        death.t_s
+    );
+    let stopped = death.base_stopped_at_s.expect("the base stopped");
+    let ramp = death.base_speed_then_mps / RobotConfig::default().accel_mps2;
+    assert!(
+        stopped - lost.t_s <= ramp + 0.2,
+        "the base stopped {:.2} s after the executive noticed (ramp {ramp:.2} s)",
+        stopped - lost.t_s
+    );
+    assert!(report.events.iter().any(|e| e.kind == "MissionAborted"));
+}
