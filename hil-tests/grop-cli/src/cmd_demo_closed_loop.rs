@@ -8,7 +8,7 @@ use std::time::Duration;
 
 use anyhow::Context;
 use hil_world::mission::{self, MissionSpec};
-use hil_world::objects::{ObjectState, Verdict};
+use hil_world::objects::ObjectState;
 use hil_world::report::{MissionEnd, WorldReport};
 use indicatif::{ProgressBar, ProgressStyle};
 use world::view::{self, Rgb};
@@ -29,6 +29,12 @@ fn parse_camera(s: &str) -> anyhow::Result<(u32, u32)> {
 
 /// Runs the closed-loop demo.
 pub fn run(args: Args) -> anyhow::Result<()> {
+    planner::methods::MethodKind::parse(&args.method).with_context(|| {
+        format!(
+            "unknown --method {:?}: use grop, satisficing, petlon, dvh or fcn-planning",
+            args.method
+        )
+    })?;
     let (scene, robot) = args.world.load()?;
     anyhow::ensure!(
         ["none", "replan"].contains(&args.retry.as_str()),
@@ -157,10 +163,11 @@ fn print_report(report: &WorldReport, wall: Duration) {
     }
     let t = &report.timing;
     println!(
-        "mission {:?}: placed {} of {} in {:.1} s simulated, {:.1} s wall ({:.1}x real time); world step {:.0} us",
+        "mission {:?}: placed {} of {} ({} without any contact on the way) in {:.1} s simulated, {:.1} s wall ({:.1}x real time); world step {:.0} us",
         report.end,
-        report.placed,
+        report.placed_end_state,
         report.objects.len(),
+        report.placed,
         t.sim_time_s,
         wall.as_secs_f64(),
         t.sim_time_s / wall.as_secs_f64().max(1e-9),
@@ -222,10 +229,10 @@ fn draw(args: &Args, scene: &world::Scene, report: &WorldReport) -> view::RgbIma
     }
     for o in &report.objects {
         let colour = match o.state {
-            ObjectState::Released {
-                verdict: Verdict::Placed,
-                ..
-            } => Rgb([0, 160, 0]),
+            ObjectState::Released { verdict, .. } if verdict.placed_strictly() => Rgb([0, 160, 0]),
+            ObjectState::Released { verdict, .. } if verdict.placed_end_state() => {
+                Rgb([150, 200, 0])
+            }
             _ => Rgb([210, 0, 0]),
         };
         view::draw_marker(&mut img, &room, o.target[0], o.target[1], 0.09, colour);

@@ -1,7 +1,8 @@
 //! `grop`: the command-line entry point of the GROP dinner-table controller.
 //!
 //! Every job is a subcommand in its own module (`cmd_*.rs`), each with `--help` and defaults:
-//! `grop demo`, `grop datagen`, `grop render`, `grop model-eval`, `grop eval`, `grop bench`.
+//! `grop demo`, `grop datagen`, `grop render`, `grop model-eval`, `grop eval`, `grop bench`,
+//! `grop hil`.
 
 use clap::{Parser, Subcommand};
 
@@ -10,6 +11,7 @@ mod cmd_datagen;
 mod cmd_demo;
 mod cmd_demo_closed_loop;
 mod cmd_eval;
+mod cmd_hil;
 mod cmd_model_eval;
 mod cmd_render;
 mod common;
@@ -39,6 +41,9 @@ enum Command {
     Eval(cmd_eval::Args),
     /// Benchmarks: writes medians and p99 to docs/.
     Bench(cmd_bench::Args),
+    /// Evaluation tasks in closed loop (world + onboard processes) next to `grop eval`'s
+    /// calculation of the same tasks, paired.
+    Hil(cmd_hil::Args),
 }
 
 fn main() -> std::process::ExitCode {
@@ -51,6 +56,7 @@ fn main() -> std::process::ExitCode {
         Command::ModelEval(a) => cmd_model_eval::run(a),
         Command::Eval(a) => cmd_eval::run(a),
         Command::Bench(a) => cmd_bench::run(a),
+        Command::Hil(a) => cmd_hil::run(a),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

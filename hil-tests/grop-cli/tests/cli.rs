@@ -28,10 +28,56 @@ fn text(o: &Output) -> String {
 }
 
 #[test]
-fn demo_plans_explains_executes_and_draws() {
+fn demo_runs_the_closed_loop_and_reports_decision_steps_and_latency() {
     let dir = tempfile::tempdir().unwrap();
     let png = dir.path().join("demo.png");
-    let o = grop(&["demo", "--model", &model(), "--out", png.to_str().unwrap()]);
+    let run = dir.path().join("run");
+    let o = grop(&[
+        "demo",
+        "--model",
+        &model(),
+        "--out",
+        png.to_str().unwrap(),
+        "--run-dir",
+        run.to_str().unwrap(),
+    ]);
+    let out = text(&o);
+    assert!(o.status.success(), "{out}");
+    for expected in [
+        "decision: plan 1",
+        "unload obj0",
+        "steps:",
+        "mission Finished",
+        "latency per stage:",
+        "perception + planning (wall)",
+    ] {
+        assert!(out.contains(expected), "no {expected:?} in:\n{out}");
+    }
+    let img = image_header(&png);
+    assert_eq!(&img[..8], b"\x89PNG\r\n\x1a\n");
+    // The run's files: what the processes read and what the world found.
+    for f in [
+        "scene.toml",
+        "deployment.toml",
+        "world-report.json",
+        "executive.log",
+    ] {
+        assert!(run.join(f).is_file(), "{f} missing");
+    }
+}
+
+#[test]
+fn demo_in_process_plans_explains_executes_and_draws() {
+    let dir = tempfile::tempdir().unwrap();
+    let png = dir.path().join("demo.png");
+    let o = grop(&[
+        "demo",
+        "--in-process",
+        "--model",
+        &model(),
+        "--out",
+        png.to_str().unwrap(),
+    ]);
     let out = text(&o);
     assert!(o.status.success(), "{out}");
     assert!(out.contains("GROP: F(p) ="), "{out}");
@@ -42,12 +88,13 @@ fn demo_plans_explains_executes_and_draws() {
 }
 
 #[test]
-fn demo_is_deterministic_for_a_seed() {
+fn demo_in_process_is_deterministic_for_a_seed() {
     let dir = tempfile::tempdir().unwrap();
     let run = |name: &str| {
         let png = dir.path().join(name);
         let o = grop(&[
             "demo",
+            "--in-process",
             "--model",
             &model(),
             "--seed",
@@ -79,10 +126,28 @@ fn demo_names_a_bad_method_and_a_missing_model() {
         text(&o)
     );
 
-    let o = grop(&["demo", "--model", "/nonexistent/psi.onnx"]);
+    let o = grop(&["demo", "--model", "/nonexistent/psi.onnx", "--no-build"]);
     assert!(!o.status.success());
     let out = text(&o);
     assert!(out.contains("/nonexistent/psi.onnx"), "{out}");
+    assert!(!out.contains("panicked"), "{out}");
+
+    // A model file that is not a model: the planner process says so and the demo stops.
+    let dir = tempfile::tempdir().unwrap();
+    let bad = dir.path().join("garbage.onnx");
+    std::fs::write(&bad, b"not a network").unwrap();
+    let run = dir.path().join("run");
+    let o = grop(&[
+        "demo",
+        "--model",
+        bad.to_str().unwrap(),
+        "--run-dir",
+        run.to_str().unwrap(),
+    ]);
+    assert!(!o.status.success());
+    let out = text(&o);
+    assert!(out.contains("grop-planner exited"), "{out}");
+    assert!(out.contains("garbage.onnx"), "{out}");
     assert!(!out.contains("panicked"), "{out}");
 }
 

@@ -268,6 +268,7 @@ impl World {
             seed: cfg.seed,
             end: MissionEnd::NeverStarted,
             placed: 0,
+            placed_end_state: 0,
             objects: Vec::new(),
             collisions: Vec::new(),
             legs: Vec::new(),
@@ -292,6 +293,7 @@ impl World {
         let mut still_s = 0.0_f64;
         let mut was_moving = false;
         let mut leg_recorded = true;
+        let mut goal_reached_pending = false;
         let mut collided_this_leg = false;
         let mut in_collision = [false; 2];
         let mut first_request: Option<f64> = None;
@@ -368,8 +370,9 @@ impl World {
                 still_s += secs(dt);
                 was_moving = false;
             }
-            // At rest after a leg: realised vs commanded.
-            if !leg_recorded && still_s >= 0.3 {
+            // The executive reached a goal: realised vs commanded.
+            if !leg_recorded && goal_reached_pending {
+                goal_reached_pending = false;
                 leg_recorded = true;
                 let goal = latest_plan
                     .iter()
@@ -401,17 +404,34 @@ impl World {
                     .obstacle_boxes_into(&cfg.robot, pose, &mut obstacles);
                 // The robot's own body (first box) is not furniture.
                 let furniture = obstacles.get(1..).unwrap_or(&[]);
-                let arm_hit = ur5e_kin::place::arm_collides(place, pose, &snap.q, furniture);
+                let arm_hit =
+                    ur5e_kin::place::arm_touches_obstacles(place, pose, &snap.q, furniture);
                 for (k, (hit, part)) in [(base_hit, Part::Base), (arm_hit, Part::Arm)]
                     .into_iter()
                     .enumerate()
                 {
                     if hit && !in_collision[k] {
                         collided_this_leg = true;
+                        let obstacle = match part {
+                            Part::Arm => furniture
+                                .iter()
+                                .find(|b| {
+                                    ur5e_kin::place::arm_collides(
+                                        place,
+                                        pose,
+                                        &snap.q,
+                                        std::slice::from_ref(*b),
+                                    )
+                                })
+                                .map(|b| [b.center.x, b.center.y, b.center.z]),
+                            Part::Base => None,
+                        };
                         report.collisions.push(CollisionRecord {
                             t_s: secs(now),
                             part,
                             base: [pose.x_m, pose.y_m, pose.yaw_rad],
+                            q: snap.q,
+                            obstacle,
                         });
                         self.world_event(
                             grop_ipc::EventKind::Collision,
@@ -459,6 +479,7 @@ impl World {
                 tcp,
                 snap.gripper_opening_m,
                 collided_this_leg,
+                in_collision[0] || in_collision[1],
                 |x, y| table.top_contains(x, y),
             );
             self.arm.set_gripper_object(width);
@@ -587,6 +608,9 @@ impl World {
                     Ok(k) => format!("{k:?}"),
                     Err(_) => format!("unknown({})", ev.kind),
                 };
+                if kind == Ok(grop_ipc::EventKind::GoalReached) {
+                    goal_reached_pending = true;
+                }
                 if kind == Ok(grop_ipc::EventKind::ReplanRequested) && first_request.is_none() {
                     first_request = Some(ns_to_s(ev.stamp_ns));
                 }
@@ -700,19 +724,16 @@ impl World {
         }
 
         report.objects = self.objects.objects().to_vec();
-        report.placed = report
+        let verdicts: Vec<Verdict> = report
             .objects
             .iter()
-            .filter(|o| {
-                matches!(
-                    o.state,
-                    objects::ObjectState::Released {
-                        verdict: Verdict::Placed,
-                        ..
-                    }
-                )
+            .filter_map(|o| match o.state {
+                objects::ObjectState::Released { verdict, .. } => Some(verdict),
+                _ => None,
             })
-            .count();
+            .collect();
+        report.placed = verdicts.iter().filter(|v| v.placed_strictly()).count();
+        report.placed_end_state = verdicts.iter().filter(|v| v.placed_end_state()).count();
         report.timing.sim_time_s = secs(self.host.now());
         report.timing.wall_time_s = wall_start.elapsed().as_secs_f64();
         report.timing.world_step_us =

@@ -142,6 +142,7 @@ pub struct RunningMission {
     pub executive: Child,
     lines: Receiver<String>,
     report_path: PathBuf,
+    dir: PathBuf,
 }
 
 fn kill(child: &mut Child, signal: i32) {
@@ -206,6 +207,31 @@ impl RunningMission {
             }
             if let Some(status) = self.world.try_wait().context("waiting for grop-world")? {
                 break status;
+            }
+            // An onboard process that exits with an error (not one we killed) will never join:
+            // say why instead of waiting for the world's join timeout.
+            let exited = [
+                ("planner", &mut self.planner),
+                ("executive", &mut self.executive),
+            ]
+            .into_iter()
+            .find_map(|(name, child)| match child.try_wait() {
+                Ok(Some(status)) if status.code().is_some_and(|c| c != 0) => Some((name, status)),
+                _ => None,
+            });
+            {
+                if let Some((name, status)) = exited {
+                    {
+                        kill(&mut self.world, libc::SIGTERM);
+                        let _ = self.world.wait();
+                        self.stop_onboard();
+                        bail!(
+                            "grop-{name} exited ({status}); the end of its log ({}):\n{}",
+                            self.dir.join(format!("{name}.log")).display(),
+                            log_tail(&self.dir.join(format!("{name}.log")), 8)
+                        );
+                    }
+                }
             }
             if Instant::now() > end {
                 kill(&mut self.world, libc::SIGTERM);
@@ -383,5 +409,23 @@ pub fn start(spec: &MissionSpec, bins: &Binaries) -> anyhow::Result<RunningMissi
         executive,
         lines,
         report_path,
+        dir: spec.dir.clone(),
     })
+}
+
+/// The error a process printed at exit (from its last `Error:` line), else the last `n` lines
+/// of its log.
+fn log_tail(path: &Path, n: usize) -> String {
+    let text = std::fs::read_to_string(path).unwrap_or_default();
+    let lines: Vec<&str> = text.lines().collect();
+    let from = lines
+        .iter()
+        .rposition(|l| l.starts_with("Error:"))
+        .unwrap_or(lines.len().saturating_sub(n));
+    lines[from..]
+        .iter()
+        .take(n)
+        .copied()
+        .collect::<Vec<_>>()
+        .join("\n")
 }

@@ -7,9 +7,12 @@
 //! `grasp_radius_m` of the object); the object then moves with the tool. Releasing: when the
 //! fingers open, the object stays where the tool centre point is. Judging: an object counts as
 //! placed when released within `tolerance_m` of its target (horizontally, and vertically within
-//! the same tolerance), over the banquet table, with no collision of the base or the arm since
-//! the base started the leg that brought it there (the paper's trial: collision-free and
-//! placed).
+//! the same tolerance), over the banquet table. Contacts decide between three kinds of placed:
+//! *placed* (no contact of the base or the arm with furniture since the base started the leg
+//! that brought it there), *placed with contact* (the end state is free, base footprint and arm
+//! at release, but something touched on the way: the paper's trial, which only judges the end
+//! state, counts it as a success), and *placed in collision* (the base or the arm is in
+//! collision at release: a failure for the paper too).
 
 use nalgebra::{Isometry3, Point3};
 
@@ -66,10 +69,26 @@ pub enum Verdict {
     Placed,
     /// On the table but off the target.
     Misplaced,
-    /// On its target, but the base or arm touched furniture during this leg.
-    PlacedAfterCollision,
+    /// On its target with a free end state, but the base or arm touched furniture during the
+    /// leg (the paper's end-state criterion counts it as placed).
+    PlacedWithContact,
+    /// On its target, but the base or the arm is in collision at release.
+    PlacedInCollision,
     /// Not over the table (fell).
     Dropped,
+}
+
+impl Verdict {
+    /// Placed by the strict criterion (no contact at all during the leg).
+    pub fn placed_strictly(self) -> bool {
+        self == Verdict::Placed
+    }
+
+    /// Placed by the paper's end-state criterion (the trial simulator's: the base stands free and
+    /// the arm placed the object without collision).
+    pub fn placed_end_state(self) -> bool {
+        matches!(self, Verdict::Placed | Verdict::PlacedWithContact)
+    }
 }
 
 /// One object.
@@ -177,7 +196,8 @@ impl ObjectTracker {
         world_from_base: &Isometry3<f64>,
         tcp: Point3<f64>,
         opening_m: f64,
-        collided_this_leg: bool,
+        contact_this_leg: bool,
+        end_state_collides: bool,
         table_contains: impl Fn(f64, f64) -> bool,
     ) -> (Option<f64>, Option<ObjectEvent>) {
         let w = self.judge.object_width_m;
@@ -195,8 +215,10 @@ impl ObjectTracker {
                     Verdict::Dropped
                 } else if error_m > self.judge.tolerance_m {
                     Verdict::Misplaced
-                } else if collided_this_leg {
-                    Verdict::PlacedAfterCollision
+                } else if end_state_collides {
+                    Verdict::PlacedInCollision
+                } else if contact_this_leg {
+                    Verdict::PlacedWithContact
                 } else {
                     Verdict::Placed
                 };
@@ -254,13 +276,13 @@ mod tests {
         let at_slot = Point3::new(0.8, 5.0, 1.1);
         let table = |_x: f64, y: f64| (5.8..6.2).contains(&y);
         // Open fingers at the slot: offered.
-        let (width, _) = t.step_gripper(&base, at_slot, 0.14, false, table);
+        let (width, _) = t.step_gripper(&base, at_slot, 0.14, false, false, table);
         assert_eq!(width, Some(0.06));
         // Closed on it.
-        let (_, ev) = t.step_gripper(&base, at_slot, 0.06, false, table);
+        let (_, ev) = t.step_gripper(&base, at_slot, 0.06, false, false, table);
         assert_eq!(ev, Some(ObjectEvent::Grasped { index: 0 }));
         // Carried to 2 cm off the target and opened.
-        let (_, ev) = t.step_gripper(&base, Point3::new(1.02, 6.0, 1.3), 0.1, false, table);
+        let (_, ev) = t.step_gripper(&base, Point3::new(1.02, 6.0, 1.3), 0.1, false, false, table);
         match ev {
             Some(ObjectEvent::Judged {
                 verdict, error_m, ..
@@ -284,20 +306,20 @@ mod tests {
         let base = Isometry3::translation(1.0, 5.0, 0.0);
         let table = |_x: f64, y: f64| (5.8..6.2).contains(&y);
         let slot0 = Point3::new(0.8, 5.0, 1.1);
-        t.step_gripper(&base, slot0, 0.14, false, table);
-        t.step_gripper(&base, slot0, 0.06, false, table);
-        let (_, ev) = t.step_gripper(&base, Point3::new(1.0, 6.0, 1.3), 0.1, true, table);
+        t.step_gripper(&base, slot0, 0.14, false, false, table);
+        t.step_gripper(&base, slot0, 0.06, false, false, table);
+        let (_, ev) = t.step_gripper(&base, Point3::new(1.0, 6.0, 1.3), 0.1, true, false, table);
         assert!(matches!(
             ev,
             Some(ObjectEvent::Judged {
-                verdict: Verdict::PlacedAfterCollision,
+                verdict: Verdict::PlacedWithContact,
                 ..
             })
         ));
         let slot1 = Point3::new(0.8, 5.2, 1.1);
-        t.step_gripper(&base, slot1, 0.14, false, table);
-        t.step_gripper(&base, slot1, 0.06, false, table);
-        let (_, ev) = t.step_gripper(&base, Point3::new(1.5, 6.0, 1.3), 0.1, false, table);
+        t.step_gripper(&base, slot1, 0.14, false, false, table);
+        t.step_gripper(&base, slot1, 0.06, false, false, table);
+        let (_, ev) = t.step_gripper(&base, Point3::new(1.5, 6.0, 1.3), 0.1, false, false, table);
         assert!(matches!(
             ev,
             Some(ObjectEvent::Judged {

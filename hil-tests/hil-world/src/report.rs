@@ -31,6 +31,12 @@ pub struct CollisionRecord {
     pub part: Part,
     /// Base pose then (x, y, yaw).
     pub base: [f64; 3],
+    /// Arm joints then (rad).
+    #[serde(default)]
+    pub q: [f64; 6],
+    /// Centre of the obstacle box touched (world, m), when known.
+    #[serde(default)]
+    pub obstacle: Option<[f64; 3]>,
 }
 
 /// Which part touched.
@@ -139,8 +145,12 @@ pub struct WorldReport {
     pub seed: u64,
     /// How it ended.
     pub end: MissionEnd,
-    /// Objects placed (verdict placed).
+    /// Objects placed with no contact at all during their leg (strict).
     pub placed: usize,
+    /// Objects placed by the paper's end-state criterion (free base and arm at release, contacts
+    /// on the way allowed): what the trial simulator and `grop eval` count.
+    #[serde(default)]
+    pub placed_end_state: usize,
     /// The objects.
     pub objects: Vec<TrackedObject>,
     /// Contacts with furniture.

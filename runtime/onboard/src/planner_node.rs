@@ -23,7 +23,8 @@
 //!   request's pose (the planner's start is the pose, not the map's `robot_start`); the seed is
 //!   the deployment's, so the plan equals `Planner::plan` on `TaskProblem::from_world` for the
 //!   same scene up to the differences between cut and rendered crops.
-//! * `UnloadFailed` with [`RetryPolicy::None`] (the paper: no retry): the remainder of the current
+//! * `UnloadFailed` (and `LegFailed` naming the unload it was for) with [`RetryPolicy::None`]
+//!   (the paper: no retry): the remainder of the current
 //!   plan without the failed object, in the same order with the same goals; objects already on
 //!   board need no station visit. No new frame or Psi run. (Without a current plan, e.g. after a
 //!   restart, it plans the remaining objects minus the failed one as below.)
@@ -406,7 +407,12 @@ impl PlannerNode {
             0
         };
         match (reason, self.retry) {
-            (ReplanReason::UnloadFailed, RetryPolicy::None) => {
+            // A leg that could not be driven to an unload's goal failed that unload (the
+            // paper's no-retry: go on with the rest).
+            (ReplanReason::UnloadFailed, RetryPolicy::None)
+            | (ReplanReason::LegFailed, RetryPolicy::None)
+                if failed_bit != 0 || reason == ReplanReason::UnloadFailed =>
+            {
                 let left = remaining & !failed_bit;
                 if self.current.is_some() {
                     self.publish_remainder(request, left, on_board & left, now)

@@ -308,6 +308,22 @@ pub fn arm_collides(
     ArmScene::new(cfg, base, obstacles).collides(cfg, q)
 }
 
+/// Whether the arm at joints `q`, on the mobile base at `base`, touches any of `obstacles` or
+/// the floor, leaving self-collision aside: what a world simulation counts as contact with its
+/// furniture ([`arm_collides`] also refuses self-colliding configurations, as a planner must).
+pub fn arm_touches_obstacles(
+    cfg: &PlaceConfig,
+    base: BasePose,
+    q: &Joints,
+    obstacles: &[ObstacleBox],
+) -> bool {
+    let world_from_arm = base.world_from_base() * cfg.mount.base_from_arm();
+    let caps = cfg
+        .collision
+        .capsules(&cfg.arm, &world_from_arm, q, cfg.tcp_offset_m);
+    crate::collision::capsules_collide(&caps, obstacles)
+}
+
 /// Distance from joint 2 (the shoulder) beyond which no capsule of the arm can reach [m].
 fn max_link_reach_m(cfg: &PlaceConfig) -> f64 {
     let a = &cfg.arm;

@@ -5,7 +5,7 @@
 //! every `base_every`-th cycle (20 ms, 50 Hz) the base loop runs: localisation fixes are fused
 //! with odometry, the mission advances, and the RMP driver ticks once over its `CanBus`.
 //! Everything the loop needs is allocated before the first cycle; planning work that allocates
-//! (base paths) runs in a worker thread behind bounded channels ([`paths`]). Overruns (a cycle
+//! (base paths, arm motions) runs in a worker thread behind bounded channels ([`worker`]). Overruns (a cycle
 //! that starts after its deadline) are counted and reported in heartbeats and `base/state`.
 //!
 //! The mission: ask the planning node for a plan (`plan/request`), then per step: drive to the
@@ -22,9 +22,9 @@
 //! localisation holds the base at zero until fixes return. If this process dies, the base's own
 //! 0.5 s loss-of-command timeout and the arm controller's RTDE watchdog stop both.
 
-pub mod paths;
 pub mod unload;
 pub mod ur5e_arm;
+pub mod worker;
 
 use std::sync::Arc;
 use std::time::Duration;
@@ -41,15 +41,13 @@ use motion_control::follower::{FollowStep, FollowerConfig, PathFollower};
 use motion_control::{Pose2, Twist};
 use rmp_base::{BaseError, BaseMode, CanLink, RmpBase};
 use rmp_codec::v3::OperationalState;
-use ur5e_kin::{BasePose, Joints, ObstacleBox};
+use ur5e_kin::{BasePose, Joints};
 use world::nav::OccupancyGrid;
 use world::{RobotConfig, Scene};
 
 use crate::localisation::{FixOutcome, Localiser, LocaliserConfig, PlanarPose, wrap};
-use paths::{MAX_PATH_POINTS, PathFailure, PathWorker};
-use unload::{
-    ArmFault, ArmPort, PlaceJoints, TrayGeometry, UnloadFailure, UnloadProgress, UnloadSequence,
-};
+use unload::{ArmFault, ArmPort, TrayGeometry, UnloadFailure, UnloadProgress, UnloadSequence};
+use worker::{Answer, Job, MAX_PATH_POINTS, PathFailure, Worker};
 
 /// What the executive needs of the arm besides the unload skills.
 pub trait ArmDevice: ArmPort {
@@ -112,6 +110,8 @@ pub struct ExecutiveConfig {
     pub localiser: LocaliserConfig,
     /// Tray slots, base frame (m).
     pub tray_slots: Vec<[f64; 3]>,
+    /// Clearance kept from furniture by base paths where the map allows (m).
+    pub path_clearance_m: f64,
     /// The robot file (limits, footprint, arm mount).
     pub robot: RobotConfig,
 }
@@ -142,6 +142,7 @@ impl ExecutiveConfig {
             heartbeat_period: Duration::from_millis(100),
             localiser: LocaliserConfig::default(),
             tray_slots: unload::default_tray_slots().to_vec(),
+            path_clearance_m: 0.15,
             robot: robot.clone(),
         }
     }
@@ -194,6 +195,8 @@ pub enum AbortReason {
     ClockLost,
     /// Asked to stop (signal).
     Shutdown,
+    /// Legs kept failing: no route from where the base stands.
+    Stuck,
 }
 
 /// Counters for reports.
@@ -229,8 +232,23 @@ enum Phase {
     Loading { until: Duration },
     /// At the table, waiting for a table-relative fix.
     AwaitTableFix { since: Duration },
+    /// Backing straight out from the table before the next leg.
+    Reversing {
+        start: PlanarPose,
+        distance_m: f64,
+        deadline: Duration,
+    },
+    /// Moving the arm to its carry pose before the base first drives.
+    ParkingArm { started: bool, since: Duration },
+    /// The worker plans the unload's arm motions.
+    PlanningArm {
+        id: u64,
+        since: Duration,
+        slot: usize,
+    },
     /// Arm at work.
-    Unloading(UnloadSequence),
+    /// (the sequence lives in `Executive::unload`, allocated once).
+    Unloading,
 }
 
 /// The topics of the executive.
@@ -252,12 +270,21 @@ pub struct Executive<B: CanBus, A: ArmDevice> {
     base: RmpBase<CanLink<B>>,
     arm: A,
     ports: Ports,
-    paths: PathWorker,
-    scene: Scene,
+    worker: Worker,
+    grid: Arc<OccupancyGrid>,
+    /// While driving to a pre-goal: the goal the base then docks at, straight ahead.
+    dock: Option<[f64; 3]>,
+    /// The last step done was at the table: back out before the next leg.
+    at_table: bool,
+    /// The arm is in its carry pose (done once before the first leg).
+    arm_parked: bool,
+    /// Legs failed in a row.
+    failed_legs: u32,
+    /// The unload in progress (in place: a new one overwrites it, nothing is allocated).
+    unload: Option<UnloadSequence>,
     tray: TrayGeometry,
     localiser: Localiser,
     follower: PathFollower<MAX_PATH_POINTS>,
-    obstacles: Vec<ObstacleBox>,
     steps: Vec<TaskStep>,
     plan_id: u64,
     step_index: usize,
@@ -331,7 +358,26 @@ impl<B: CanBus, A: ArmDevice> Executive<B, A> {
         let tray = unload::solve_tray(&config.robot.place, &config.tray_slots)
             .map_err(ExecutiveError::Tray)?;
         let grid = Arc::new(OccupancyGrid::from_scene(&scene, &config.robot));
-        let paths = PathWorker::start(grid, Arc::clone(&clock)).map_err(ExecutiveError::Worker)?;
+        // Paths keep a margin from furniture where the map allows: the base follows its estimate,
+        // which is off by the localisation error.
+        let mut grids: Vec<Arc<OccupancyGrid>> = [1.0, 0.5]
+            .iter()
+            .filter(|_| config.path_clearance_m > 0.0)
+            .map(|share| {
+                let mut careful = config.robot.clone();
+                careful.footprint.length_m += 2.0 * share * config.path_clearance_m;
+                careful.footprint.width_m += 2.0 * share * config.path_clearance_m;
+                Arc::new(OccupancyGrid::from_scene(&scene, &careful))
+            })
+            .collect();
+        grids.push(Arc::clone(&grid));
+        let worker = Worker::start(
+            grids,
+            scene.clone(),
+            config.robot.clone(),
+            Arc::clone(&clock),
+        )
+        .map_err(ExecutiveError::Worker)?;
         let ports = Ports {
             base_state: node.publisher().map_err(ipc_err)?,
             arm_state: node.publisher().map_err(ipc_err)?,
@@ -351,15 +397,19 @@ impl<B: CanBus, A: ArmDevice> Executive<B, A> {
         Ok(Self {
             localiser: Localiser::new(config.localiser),
             follower,
-            obstacles: Vec::with_capacity(64),
             steps: Vec::with_capacity(MAX_TASK_STEPS),
             config,
             clock,
             base,
             arm,
             ports,
-            paths,
-            scene,
+            worker,
+            grid,
+            dock: None,
+            at_table: false,
+            arm_parked: false,
+            failed_legs: 0,
+            unload: None,
             tray,
             plan_id: 0,
             step_index: 0,
@@ -480,7 +530,7 @@ impl<B: CanBus, A: ArmDevice> Executive<B, A> {
             }
             Err(_) => {}
         }
-        if let Some(Phase::Unloading(seq)) = &mut self.phase {
+        if let (Some(Phase::Unloading), Some(seq)) = (&self.phase, &mut self.unload) {
             if matches!(self.state, MissionState::Running) {
                 let progress = seq.poll(&mut self.arm, &self.tray, now);
                 match progress {
@@ -745,7 +795,42 @@ impl<B: CanBus, A: ArmDevice> Executive<B, A> {
         let kind = step.kind();
         let pose = self.localiser.estimate();
         let phase = self.phase.take();
+        if !self.arm_parked && phase.is_none() {
+            self.phase = Some(Phase::ParkingArm {
+                started: false,
+                since: now,
+            });
+            return;
+        }
         self.phase = match (kind, phase) {
+            (Ok(_), Some(Phase::ParkingArm { started, since })) => {
+                let carry = self.tray.carry;
+                let result = if started {
+                    self.arm.poll(now)
+                } else {
+                    self.arm
+                        .start_move_joints(&carry, now)
+                        .map(|()| unload::SkillStatus::Running)
+                };
+                match result {
+                    Ok(unload::SkillStatus::Done { .. }) => {
+                        self.arm_parked = true;
+                        None
+                    }
+                    Ok(unload::SkillStatus::Running)
+                        if now.saturating_sub(since) < Duration::from_secs(20) =>
+                    {
+                        Some(Phase::ParkingArm {
+                            started: true,
+                            since,
+                        })
+                    }
+                    Ok(unload::SkillStatus::Running) | Err(_) => {
+                        self.abort(AbortReason::ArmStopped, now);
+                        None
+                    }
+                }
+            }
             // Every step is "be at (x, y, yaw)" first; a load or unload step whose location the
             // preceding navigation reached skips straight to its work.
             (Ok(TaskStepKind::Navigate), None) => Some(self.start_leg(&step, pose, now)),
@@ -753,29 +838,19 @@ impl<B: CanBus, A: ArmDevice> Executive<B, A> {
                 until: now + self.config.load_wait,
             }),
             (Ok(TaskStepKind::Unload), None) => Some(Phase::AwaitTableFix { since: now }),
-            (Ok(_), Some(Phase::PathRequested { id, since })) => match self.paths.try_answer() {
-                Some((answer_id, Ok(points))) if answer_id == id => {
+            (Ok(_), Some(Phase::PathRequested { id, since })) => match self.worker.try_answer() {
+                Some(Answer::Path(answer_id, Ok(points))) if answer_id == id => {
                     match self.follower.set_path(&points) {
-                        Ok(()) => {
-                            let planned = step.travel_cost_s.max(
-                                pose.distance_m(&PlanarPose::new(step.x_m, step.y_m, 0.0))
-                                    / self.config.robot.speed_mps.max(0.05),
-                            );
-                            Some(Phase::Following {
-                                deadline: now
-                                    + Duration::from_secs_f64(
-                                        planned * self.config.leg_time_factor,
-                                    )
-                                    + self.config.leg_slack,
-                            })
-                        }
+                        Ok(()) => Some(Phase::Following {
+                            deadline: self.leg_deadline(&step, pose, now),
+                        }),
                         Err(_) => self.leg_failed(&step, now, "path refused by the follower"),
                     }
                 }
-                Some((answer_id, Err(e))) if answer_id == id => {
+                Some(Answer::Path(answer_id, Err(e))) if answer_id == id => {
                     let why = match e {
                         PathFailure::NoRoute => "no route on the map",
-                        PathFailure::WorkerGone => "path worker gone",
+                        PathFailure::WorkerGone => "planning worker gone",
                     };
                     self.leg_failed(&step, now, why)
                 }
@@ -784,6 +859,28 @@ impl<B: CanBus, A: ArmDevice> Executive<B, A> {
                 }
                 _ => Some(Phase::PathRequested { id, since }),
             },
+            (
+                Ok(_),
+                Some(Phase::Reversing {
+                    start,
+                    distance_m,
+                    deadline,
+                }),
+            ) => {
+                if pose.distance_m(&start) >= distance_m {
+                    Some(self.request_path(&step, pose, now))
+                } else if now > deadline {
+                    // Blocked behind: plan from here.
+                    Some(self.request_path(&step, pose, now))
+                } else {
+                    self.velocity = Twist::new(-REVERSE_SPEED_MPS, 0.0);
+                    Some(Phase::Reversing {
+                        start,
+                        distance_m,
+                        deadline,
+                    })
+                }
+            }
             (Ok(_), Some(Phase::Following { deadline })) => {
                 let p = Pose2 {
                     x_m: pose.x_m as f32,
@@ -826,7 +923,24 @@ impl<B: CanBus, A: ArmDevice> Executive<B, A> {
                 }
             }
             (Ok(_), Some(Phase::Settling { until })) => {
-                if now >= until {
+                if now >= until && self.dock.is_some() {
+                    // At the pre-goal, facing the table: drive straight in to the goal.
+                    let goal = self
+                        .dock
+                        .take()
+                        .unwrap_or([step.x_m, step.y_m, step.yaw_rad]);
+                    let points = [
+                        [pose.x_m as f32, pose.y_m as f32],
+                        [goal[0] as f32, goal[1] as f32],
+                    ];
+                    match self.follower.set_path(&points) {
+                        Ok(()) => Some(Phase::Following {
+                            deadline: self.leg_deadline(&step, pose, now),
+                        }),
+                        Err(_) => self.leg_failed(&step, now, "docking path refused"),
+                    }
+                } else if now >= until {
+                    self.failed_legs = 0;
                     let err = pose.distance_m(&PlanarPose::new(step.x_m, step.y_m, 0.0));
                     self.event(
                         EventKind::GoalReached,
@@ -868,15 +982,33 @@ impl<B: CanBus, A: ArmDevice> Executive<B, A> {
             }
             (Ok(_), Some(Phase::AwaitTableFix { since })) => {
                 if let Some(fix) = self.localiser.table_pose(ns(since)) {
-                    Some(self.start_unload(&step, fix, now))
+                    self.start_unload(&step, fix, now)
                 } else if now.saturating_sub(since) > self.config.table_fix_wait {
                     // No table fix: fall back to the global estimate (less precise).
-                    Some(self.start_unload(&step, pose, now))
+                    self.start_unload(&step, pose, now)
                 } else {
                     Some(Phase::AwaitTableFix { since })
                 }
             }
-            (Ok(_), Some(Phase::Unloading(seq))) => Some(Phase::Unloading(seq)), // arm cycle drives it
+            (Ok(_), Some(Phase::PlanningArm { id, since, slot })) => match self.worker.try_answer()
+            {
+                Some(Answer::Unload(answer_id, planned)) if answer_id == id => match *planned {
+                    Ok(plan) => {
+                        self.unload = Some(UnloadSequence::new(slot, plan));
+                        Some(Phase::Unloading)
+                    }
+                    Err(f) => {
+                        self.finish_failed_unload(&step, now, f);
+                        None
+                    }
+                },
+                _ if now.saturating_sub(since) > Duration::from_secs(10) => {
+                    self.finish_failed_unload(&step, now, UnloadFailure::NoArmPath);
+                    None
+                }
+                _ => Some(Phase::PlanningArm { id, since, slot }),
+            },
+            (Ok(_), Some(Phase::Unloading)) => Some(Phase::Unloading), // the arm cycle drives it
             (Err(_), _) => {
                 let index = self.step_index;
                 self.event(
@@ -890,17 +1022,77 @@ impl<B: CanBus, A: ArmDevice> Executive<B, A> {
         };
     }
 
+    /// Starts a leg: back out from the table first if the robot stands at it, then ask for the
+    /// path (to a pre-goal in front of a table goal, see [`Self::request_path`]).
     fn start_leg(&mut self, step: &TaskStep, pose: PlanarPose, now: Duration) -> Phase {
+        if std::mem::take(&mut self.at_table) {
+            // Straight back, away from the table, as far as the map allows (up to the docking
+            // distance): turning in place next to the table would sweep the footprint into it.
+            let (s, c) = pose.yaw_rad.sin_cos();
+            let distance_m = DOCKING_DISTANCES_M
+                .iter()
+                .copied()
+                .find(|d| self.grid.is_free((pose.x_m - c * d, pose.y_m - s * d)))
+                .unwrap_or(0.0);
+            if distance_m > 0.0 {
+                return Phase::Reversing {
+                    start: pose,
+                    distance_m,
+                    deadline: now
+                        + Duration::from_secs_f64(3.0 * distance_m / REVERSE_SPEED_MPS as f64),
+                };
+            }
+        }
+        self.request_path(step, pose, now)
+    }
+
+    /// Asks the worker for the leg's path. A goal followed by an unload is docked: the path
+    /// ends at a pre-goal straight behind the goal (facing the table), where the base turns,
+    /// then drives straight in, so it never turns next to the table or between chairs.
+    fn request_path(&mut self, step: &TaskStep, pose: PlanarPose, now: Duration) -> Phase {
         let id = self.next_path_id;
         self.next_path_id += 1;
-        match self
-            .paths
-            .request(id, (pose.x_m, pose.y_m), (step.x_m, step.y_m))
-        {
+        let mut to = (step.x_m, step.y_m);
+        self.dock = None;
+        let unload_next = self
+            .steps
+            .get(self.step_index + 1)
+            .is_some_and(|n| n.kind() == Ok(TaskStepKind::Unload));
+        if unload_next {
+            let (s, c) = step.yaw_rad.sin_cos();
+            let straight_free = |d: f64| {
+                (0..=((d / 0.05).ceil() as usize)).all(|k| {
+                    let t = (k as f64 * 0.05).min(d);
+                    self.grid.is_free((step.x_m - c * t, step.y_m - s * t))
+                })
+            };
+            if let Some(d) = DOCKING_DISTANCES_M
+                .iter()
+                .copied()
+                .find(|d| straight_free(*d))
+            {
+                to = (step.x_m - c * d, step.y_m - s * d);
+                self.dock = Some([step.x_m, step.y_m, step.yaw_rad]);
+            }
+        }
+        let job = Job::Path {
+            id,
+            from: (pose.x_m, pose.y_m),
+            to,
+        };
+        match self.worker.submit(job) {
             Ok(true) => Phase::PathRequested { id, since: now },
-            // Queue full (cannot happen with one leg at a time): try again next period.
+            // Queue full (cannot happen with one job at a time): try again next period.
             Ok(false) | Err(_) => Phase::PathRequested { id: 0, since: now },
         }
+    }
+
+    fn leg_deadline(&self, step: &TaskStep, pose: PlanarPose, now: Duration) -> Duration {
+        let planned = step.travel_cost_s.max(
+            pose.distance_m(&PlanarPose::new(step.x_m, step.y_m, 0.0))
+                / self.config.robot.speed_mps.max(0.05),
+        );
+        now + Duration::from_secs_f64(planned * self.config.leg_time_factor) + self.config.leg_slack
     }
 
     fn leg_failed(&mut self, step: &TaskStep, now: Duration, why: &str) -> Option<Phase> {
@@ -909,6 +1101,18 @@ impl<B: CanBus, A: ArmDevice> Executive<B, A> {
             now,
             format_args!("leg to ({:.2}, {:.2}) failed: {why}", step.x_m, step.y_m),
         );
+        self.failed_legs += 1;
+        if self.failed_legs > MAX_FAILED_LEGS {
+            // The base cannot get anywhere from here: stop rather than ask forever.
+            self.event(
+                EventKind::MissionAborted,
+                now,
+                format_args!("{MAX_FAILED_LEGS} legs in a row failed: the base is stuck"),
+            );
+            self.state = MissionState::Aborted(AbortReason::Stuck);
+            self.velocity = Twist::ZERO;
+            return None;
+        }
         // The unload that needed this leg cannot happen from here: let the planner decide.
         if let Some(next) = self.steps.get(self.step_index + 1).copied() {
             if next.kind() == Ok(TaskStepKind::Unload) {
@@ -921,33 +1125,37 @@ impl<B: CanBus, A: ArmDevice> Executive<B, A> {
         None
     }
 
-    fn start_unload(&mut self, step: &TaskStep, at: PlanarPose, now: Duration) -> Phase {
+    /// Hands the unload's arm planning (IK at the measured pose, RRT-Connect transits) to the
+    /// worker.
+    fn start_unload(&mut self, step: &TaskStep, at: PlanarPose, now: Duration) -> Option<Phase> {
         let object = step.object_index;
-        let slot = self.slots.iter().position(|s| *s == Some(object));
-        let base = BasePose {
-            x_m: at.x_m,
-            y_m: at.y_m,
-            yaw_rad: at.yaw_rad,
+        let Some(slot) = self.slots.iter().position(|s| *s == Some(object)) else {
+            self.finish_failed_unload(step, now, UnloadFailure::NothingInSlot);
+            return None;
         };
-        self.scene
-            .obstacle_boxes_into(&self.config.robot, base, &mut self.obstacles);
-        let solved: Result<PlaceJoints, UnloadFailure> = unload::solve_place(
-            &self.config.robot.place,
-            base,
-            step.target_m,
-            &self.obstacles,
-        )
-        .map_err(UnloadFailure::Unreachable);
-        match (slot, solved) {
-            (Some(slot), Ok(joints)) => Phase::Unloading(UnloadSequence::new(slot, joints)),
-            (None, _) => {
-                self.phase = None;
-                self.finish_failed_unload(step, now, UnloadFailure::NothingInSlot);
-                Phase::Settling { until: now } // replaced by the replan request (steps cleared)
-            }
-            (Some(_), Err(f)) => {
-                self.finish_failed_unload(step, now, f);
-                Phase::Settling { until: now }
+        let id = self.next_path_id;
+        self.next_path_id += 1;
+        let job = Job::Unload {
+            id,
+            base: BasePose {
+                x_m: at.x_m,
+                y_m: at.y_m,
+                yaw_rad: at.yaw_rad,
+            },
+            target: step.target_m,
+            from_slot: self.tray.pick_above[slot.min(self.tray.pick_above.len() - 1)],
+            carry: self.tray.carry,
+            seed: self.plan_id ^ (u64::from(object) << 32) ^ id,
+        };
+        match self.worker.submit(job) {
+            Ok(true) => Some(Phase::PlanningArm {
+                id,
+                since: now,
+                slot,
+            }),
+            _ => {
+                self.finish_failed_unload(step, now, UnloadFailure::NoArmPath);
+                None
             }
         }
     }
@@ -966,6 +1174,7 @@ impl<B: CanBus, A: ArmDevice> Executive<B, A> {
                     }
                 }
                 self.remaining &= !(1u64 << object.min(63));
+                self.at_table = true;
                 self.event(
                     EventKind::UnloadSucceeded,
                     now,
@@ -990,6 +1199,7 @@ impl<B: CanBus, A: ArmDevice> Executive<B, A> {
 
     fn finish_failed_unload(&mut self, step: &TaskStep, now: Duration, failure: UnloadFailure) {
         self.stats.unloads_failed += 1;
+        self.at_table = true;
         self.event(
             EventKind::UnloadFailed,
             now,
@@ -1016,7 +1226,9 @@ impl<B: CanBus, A: ArmDevice> Executive<B, A> {
             AbortReason::BaseFault => EventKind::BaseFault,
             AbortReason::ArmStopped => EventKind::ArmStopped,
             AbortReason::PlannerLost => EventKind::PeerLost,
-            AbortReason::ClockLost | AbortReason::Shutdown => EventKind::MissionAborted,
+            AbortReason::ClockLost | AbortReason::Shutdown | AbortReason::Stuck => {
+                EventKind::MissionAborted
+            }
         };
         if kind != EventKind::MissionAborted {
             self.event(
@@ -1044,6 +1256,15 @@ impl<B: CanBus, A: ArmDevice> Executive<B, A> {
         let _ = self.ports.events.publish(&msg);
     }
 }
+
+/// Legs that may fail in a row before the mission is given up.
+const MAX_FAILED_LEGS: u32 = 3;
+
+/// Backing-out speed from the table, m/s.
+const REVERSE_SPEED_MPS: f32 = 0.15;
+
+/// Docking / back-out distances tried, longest first, m.
+const DOCKING_DISTANCES_M: [f64; 3] = [0.45, 0.3, 0.15];
 
 fn zero_request() -> ReplanRequestMsg {
     ReplanRequestMsg {

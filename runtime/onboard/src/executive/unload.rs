@@ -57,6 +57,8 @@ pub enum ArmFault {
 pub enum UnloadFailure {
     /// No placing configuration at the measured base pose.
     Unreachable(PlaceFailure),
+    /// No collision-free arm path between the tray and the target.
+    NoArmPath,
     /// The gripper closed on nothing: the slot was empty.
     NothingInSlot,
     /// The object slipped out before release.
@@ -131,6 +133,99 @@ pub struct PlaceJoints {
     pub place: Joints,
     /// Above it.
     pub above: Joints,
+}
+
+/// Most waypoints of one arm transit.
+pub const MAX_WAYPOINTS: usize = 24;
+
+/// Joint waypoints of a transit (straight joint-space segments, each collision-checked).
+pub type Waypoints = heapless::Vec<Joints, MAX_WAYPOINTS>;
+
+/// Everything the arm needs for one unload, planned before it moves: the placing joints and
+/// collision-free joint paths (RRT-Connect, `ur5e_kin::plan_joint_path`) from over the tray slot
+/// to over the target, and from over the target back to the carry pose.
+#[derive(Debug, Clone, PartialEq)]
+pub struct UnloadPlan {
+    /// Placing joints.
+    pub joints: PlaceJoints,
+    /// Carry pose -> over the slot (first waypoint excluded).
+    pub to_slot: Waypoints,
+    /// Over the slot -> over the target (first waypoint excluded: the arm is there).
+    pub to_target: Waypoints,
+    /// Over the target -> carry pose (first waypoint excluded).
+    pub to_carry: Waypoints,
+}
+
+impl UnloadPlan {
+    /// A plan with straight joint moves only (no obstacles in the way, e.g. tests).
+    pub fn direct(joints: PlaceJoints, carry: Joints) -> Self {
+        Self::direct_via(joints, carry, None)
+    }
+
+    /// As [`UnloadPlan::direct`], with the move to the slot's approach `over_slot` included.
+    pub fn direct_via(joints: PlaceJoints, carry: Joints, over_slot: Option<Joints>) -> Self {
+        let mut to_slot = Waypoints::new();
+        if let Some(q) = over_slot {
+            let _ = to_slot.push(q);
+        }
+        let mut to_target = Waypoints::new();
+        let _ = to_target.push(joints.above);
+        let mut to_carry = Waypoints::new();
+        let _ = to_carry.push(carry);
+        Self {
+            joints,
+            to_slot,
+            to_target,
+            to_carry,
+        }
+    }
+}
+
+fn waypoints(path: &[Joints]) -> Waypoints {
+    // Skip the start (the arm is there); keep the goal; thin the middle if ever too long.
+    let rest = path.get(1..).unwrap_or(&[]);
+    let n = rest.len();
+    let stride = n.div_ceil(MAX_WAYPOINTS).max(1);
+    let mut out = Waypoints::new();
+    for (i, q) in rest.iter().enumerate() {
+        if i % stride == stride - 1 || i + 1 == n {
+            let _ = out.push(*q);
+        }
+    }
+    out
+}
+
+/// Plans one unload at the measured base pose: placing joints, then the two transits. Runs in
+/// the executive's worker (it allocates).
+pub fn plan_unload(
+    cfg: &PlaceConfig,
+    base: BasePose,
+    target: [f64; 3],
+    obstacles: &[ObstacleBox],
+    from_slot: &Joints,
+    carry: &Joints,
+    seed: u64,
+) -> Result<UnloadPlan, UnloadFailure> {
+    let joints = solve_place(cfg, base, target, obstacles).map_err(UnloadFailure::Unreachable)?;
+    let transit = |a: &Joints, b: &Joints, salt: u64| -> Result<Waypoints, UnloadFailure> {
+        match ur5e_kin::plan_joint_path(cfg, base, a, b, obstacles, seed ^ salt) {
+            Ok(path) => Ok(waypoints(&path)),
+            // The tray and carry poses sit over the base's own body, which the check counts as
+            // an obstacle: from there, go straight (the body is the robot's, not furniture).
+            Err(ur5e_kin::JointPathError::InvalidStart) => {
+                let mut w = Waypoints::new();
+                let _ = w.push(*b);
+                Ok(w)
+            }
+            Err(_) => Err(UnloadFailure::NoArmPath),
+        }
+    };
+    Ok(UnloadPlan {
+        to_slot: transit(carry, from_slot, 0x736c)?,
+        to_target: transit(from_slot, &joints.above, 0x7461)?,
+        to_carry: transit(&joints.above, carry, 0x6361)?,
+        joints,
+    })
 }
 
 /// Solves the placing joints for `target` from the measured base pose against the furniture
@@ -217,18 +312,20 @@ pub enum UnloadProgress {
 #[derive(Debug, Clone)]
 pub struct UnloadSequence {
     slot: usize,
-    joints: PlaceJoints,
+    plan: UnloadPlan,
     stage: Stage,
+    waypoint: usize,
     started: bool,
 }
 
 impl UnloadSequence {
-    /// An unload of the object in tray slot `slot` with the solved placing joints.
-    pub fn new(slot: usize, joints: PlaceJoints) -> Self {
+    /// An unload of the object in tray slot `slot` along `plan`.
+    pub fn new(slot: usize, plan: UnloadPlan) -> Self {
         Self {
             slot,
-            joints,
+            plan,
             stage: Stage::OpenFirst,
+            waypoint: 0,
             started: false,
         }
     }
@@ -252,9 +349,16 @@ impl UnloadSequence {
                 arm.start_move_joints(&tray.pick_above[slot], now)
             }
             Stage::AtSlot => arm.start_move_joints(&tray.pick[slot], now),
-            Stage::AboveTarget | Stage::Retreat => arm.start_move_joints(&self.joints.above, now),
-            Stage::AtTarget => arm.start_move_joints(&self.joints.place, now),
-            Stage::Carry => arm.start_move_joints(&tray.carry, now),
+            Stage::AboveTarget => match self.plan.to_target.get(self.waypoint) {
+                Some(q) => arm.start_move_joints(q, now),
+                None => arm.start_move_joints(&self.plan.joints.above, now),
+            },
+            Stage::Retreat => arm.start_move_joints(&self.plan.joints.above, now),
+            Stage::AtTarget => arm.start_move_joints(&self.plan.joints.place, now),
+            Stage::Carry => match self.plan.to_carry.get(self.waypoint) {
+                Some(q) => arm.start_move_joints(q, now),
+                None => arm.start_move_joints(&tray.carry, now),
+            },
         }
     }
 
@@ -279,6 +383,19 @@ impl UnloadSequence {
                 if self.stage == Stage::Grasp && !object_held {
                     return UnloadProgress::Failed(UnloadFailure::NothingInSlot);
                 }
+                // Transits run their waypoints one move each.
+                let waypoints = match self.stage {
+                    Stage::AboveSlot => self.plan.to_slot.len(),
+                    Stage::AboveTarget => self.plan.to_target.len(),
+                    Stage::Carry => self.plan.to_carry.len(),
+                    _ => 0,
+                };
+                if self.waypoint + 1 < waypoints {
+                    self.waypoint += 1;
+                    self.started = false;
+                    return self.poll(arm, tray, now);
+                }
+                self.waypoint = 0;
                 match self.stage.next() {
                     None => UnloadProgress::Placed,
                     Some(next) => {
@@ -349,7 +466,7 @@ mod tests {
     }
 
     fn run(arm: &mut FakeArm) -> UnloadProgress {
-        let mut seq = UnloadSequence::new(1, joints());
+        let mut seq = UnloadSequence::new(1, UnloadPlan::direct(joints(), [3.0; 6]));
         let tray = tray();
         for k in 0..1000u64 {
             match seq.poll(arm, &tray, Duration::from_millis(2 * k)) {
@@ -413,6 +530,34 @@ mod tests {
         assert_eq!(
             run(&mut faulty),
             UnloadProgress::Failed(UnloadFailure::Arm(ArmFault::ProtectiveStop))
+        );
+    }
+
+    #[test]
+    fn transits_run_every_waypoint() {
+        let mut plan = UnloadPlan::direct(joints(), [3.0; 6]);
+        plan.to_target.clear();
+        for q in [6.0, 7.0, 5.0] {
+            plan.to_target.push([q; 6]).unwrap();
+        }
+        let mut arm = FakeArm {
+            cycles: 1,
+            left: 0,
+            holding_object: false,
+            slot_has_object: true,
+            log: Vec::new(),
+            fault_at: None,
+        };
+        let mut seq = UnloadSequence::new(0, plan);
+        let tray = tray();
+        for k in 0..1000u64 {
+            if seq.poll(&mut arm, &tray, Duration::from_millis(2 * k)) == UnloadProgress::Placed {
+                break;
+            }
+        }
+        assert_eq!(
+            arm.log[4..8],
+            ["move 2.00", "move 6.00", "move 7.00", "move 5.00"]
         );
     }
 
