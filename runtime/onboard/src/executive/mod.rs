@@ -992,7 +992,7 @@ impl<B: CanBus, A: ArmDevice> Executive<B, A> {
             }
             (Ok(_), Some(Phase::PlanningArm { id, since, slot })) => match self.worker.try_answer()
             {
-                Some(Answer::Unload(answer_id, planned)) if answer_id == id => match *planned {
+                Some(Answer::Unload(answer_id, planned)) if answer_id == id => match planned {
                     Ok(plan) => {
                         self.unload = Some(UnloadSequence::new(slot, plan));
                         Some(Phase::Unloading)

@@ -61,13 +61,15 @@ pub enum Job {
     },
 }
 
-/// The worker's answer.
+/// The worker's answer. Variants travel by value through the preallocated channel (boxing the
+/// large one would allocate per answer), hence the size difference.
 #[derive(Debug, Clone)]
+#[allow(clippy::large_enum_variant)]
 pub enum Answer {
     /// To a path job.
     Path(u64, Result<FollowerPath, PathFailure>),
     /// To an unload job.
-    Unload(u64, Box<Result<UnloadPlan, UnloadFailure>>),
+    Unload(u64, Result<UnloadPlan, UnloadFailure>),
 }
 
 /// The worker's handle.
@@ -128,7 +130,7 @@ impl Worker {
                                 &carry,
                                 seed,
                             );
-                            Answer::Unload(id, Box::new(planned))
+                            Answer::Unload(id, planned)
                         }
                     };
                     let sent = outbox.send(answer);
