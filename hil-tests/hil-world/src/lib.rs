@@ -505,31 +505,26 @@ impl World {
                 let truth = [pose.x_m, pose.y_m, pose.yaw_rad];
                 let g = self.fixes.global_fix(truth);
                 fix_seq += 1;
-                let seq = fix_seq;
-                let _ = self.ports.poses.publish_with(|m| {
-                    m.seq = seq;
-                    m.stamp_ns = ns(now);
-                    m.set_kind(PoseFixKind::Global);
-                    m.x_m = g[0];
-                    m.y_m = g[1];
-                    m.yaw_rad = g[2];
-                    m.sigma_xy_m = cfg.fixes.leg_bias_sigma_m;
-                    m.sigma_yaw_rad = cfg.fixes.leg_yaw_sigma_rad;
-                });
+                let m = &cfg.fixes;
+                let _ = self.ports.poses.publish(&BasePoseMsg::fix(
+                    fix_seq,
+                    ns(now),
+                    PoseFixKind::Global,
+                    g,
+                    m.leg_bias_sigma_m,
+                    m.leg_yaw_sigma_rad,
+                ));
                 let to_table = (pose.y_m - table_edge_y(&cfg.scene, pose.y_m)).abs();
                 if let Some(t) = self.fixes.table_fix(truth, to_table) {
                     fix_seq += 1;
-                    let seq = fix_seq;
-                    let _ = self.ports.poses.publish_with(|m| {
-                        m.seq = seq;
-                        m.stamp_ns = ns(now);
-                        m.set_kind(PoseFixKind::TableRelative);
-                        m.x_m = t[0];
-                        m.y_m = t[1];
-                        m.yaw_rad = t[2];
-                        m.sigma_xy_m = cfg.fixes.table_sigma_m;
-                        m.sigma_yaw_rad = cfg.fixes.table_yaw_sigma_rad;
-                    });
+                    let _ = self.ports.poses.publish(&BasePoseMsg::fix(
+                        fix_seq,
+                        ns(now),
+                        PoseFixKind::TableRelative,
+                        t,
+                        m.table_sigma_m,
+                        m.table_yaw_sigma_rad,
+                    ));
                 }
                 hb_seq += 1;
                 let hb = hb_seq;

@@ -292,6 +292,13 @@ impl Drop for RunningMission {
 pub fn start(spec: &MissionSpec, bins: &Binaries) -> anyhow::Result<RunningMission> {
     std::fs::create_dir_all(&spec.dir)
         .with_context(|| format!("creating {}", spec.dir.display()))?;
+    // Absolute: the deployment file's relative paths resolve against its own folder.
+    let dir = std::fs::canonicalize(&spec.dir)
+        .with_context(|| format!("resolving {}", spec.dir.display()))?;
+    let spec = &MissionSpec {
+        dir,
+        ..spec.clone()
+    };
     let run = unique_run_name("m");
     let scene_path = spec.dir.join("scene.toml");
     spec.scene

@@ -130,6 +130,12 @@ fn killing_the_executive_while_driving_stops_the_base_by_its_own_timeout() {
     // The base's own loss-of-command timeout (0.5 s) plus its deceleration ramp (NVM 3.9 m/s^2)
     // plus the clock's detection poll; generous margin, no wall time involved.
     let ramp = death.base_speed_then_mps / 3.9;
+    println!(
+        "executive killed at {:.3} s driving {:.2} m/s: base stopped after {:.3} s",
+        death.t_s,
+        death.base_speed_then_mps,
+        stopped - death.t_s
+    );
     assert!(
         stopped - death.t_s <= 0.5 + ramp + 0.2,
         "stopped {:.2} s after the death",
@@ -160,6 +166,12 @@ fn killing_the_executive_while_the_arm_moves_stops_the_arm_by_the_controller_wat
         .expect("the world noticed the executive die");
     assert!(death.arm_speed_then_radps > 0.2, "{death:?}");
     let stopped = death.arm_stopped_at_s.expect("the arm stopped");
+    println!(
+        "executive killed at {:.3} s, arm at {:.2} rad/s: arm stopped after {:.3} s",
+        death.t_s,
+        death.arm_speed_then_radps,
+        stopped - death.t_s
+    );
     // The RTDE watchdog demands 10 Hz (0.1 s), then stopj at 4 rad/s^2 (a joint at 1.5 rad/s
     // needs 0.4 s); margin for the detection poll.
     assert!(
@@ -206,6 +218,13 @@ fn killing_the_planner_makes_the_executive_stop_the_base_and_abort() {
     );
     let stopped = death.base_stopped_at_s.expect("the base stopped");
     let ramp = death.base_speed_then_mps / RobotConfig::default().accel_mps2;
+    println!(
+        "planner killed at {:.3} s: executive noticed after {:.3} s, base ({:.2} m/s) stopped {:.3} s after the death",
+        death.t_s,
+        lost.t_s - death.t_s,
+        death.base_speed_then_mps,
+        stopped - death.t_s
+    );
     assert!(
         stopped - lost.t_s <= ramp + 0.2,
         "the base stopped {:.2} s after the executive noticed (ramp {ramp:.2} s)",

@@ -12,8 +12,9 @@ use std::time::Duration;
 use can_bus::{MemoryBus, MemoryBusNode};
 use grop_clock::Clock;
 use grop_ipc::{
-    BaseStateMsg, EventKind, EventMsg, HeartbeatMsg, IpcNode, PoseFixKind, ProcessRole,
-    ReplanRequestMsg, TableSide, TaskPlanMsg, TaskStep, TopicPublisher, TopicSubscriber,
+    BasePoseMsg, BaseStateMsg, EventKind, EventMsg, HeartbeatMsg, IpcNode, PoseFixKind,
+    ProcessRole, ReplanRequestMsg, TableSide, TaskPlanMsg, TaskStep, TopicPublisher,
+    TopicSubscriber,
 };
 use grop_onboard::executive::unload::{ArmFault, ArmPort, SkillStatus};
 use grop_onboard::executive::{
@@ -280,30 +281,26 @@ impl Harness {
             let ns = now.as_nanos() as u64;
             if self.fixes_on {
                 self.poses
-                    .publish_with(|m| {
-                        m.seq = ns;
-                        m.stamp_ns = ns;
-                        m.set_kind(PoseFixKind::Global);
-                        m.x_m = t[0];
-                        m.y_m = t[1];
-                        m.yaw_rad = t[2];
-                        m.sigma_xy_m = 0.01;
-                        m.sigma_yaw_rad = 0.01;
-                    })
+                    .publish(&BasePoseMsg::fix(
+                        ns,
+                        ns,
+                        PoseFixKind::Global,
+                        t,
+                        0.01,
+                        0.01,
+                    ))
                     .unwrap();
                 let (v, w) = self.base.sim().velocity();
                 if v.abs() < 0.005 && w.abs() < 0.005 && t[1] > 4.5 && self.noisy.is_none() {
                     self.poses
-                        .publish_with(|m| {
-                            m.seq = ns + 1;
-                            m.stamp_ns = ns;
-                            m.set_kind(PoseFixKind::TableRelative);
-                            m.x_m = t[0];
-                            m.y_m = t[1];
-                            m.yaw_rad = t[2];
-                            m.sigma_xy_m = 0.005;
-                            m.sigma_yaw_rad = 0.005;
-                        })
+                        .publish(&BasePoseMsg::fix(
+                            ns + 1,
+                            ns,
+                            PoseFixKind::TableRelative,
+                            t,
+                            0.005,
+                            0.005,
+                        ))
                         .unwrap();
                 }
             }

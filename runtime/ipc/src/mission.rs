@@ -429,6 +429,28 @@ pub struct BasePoseMsg {
 }
 
 impl BasePoseMsg {
+    /// A fix of `kind`: pose (x, y, yaw) and its standard deviations.
+    pub fn fix(
+        seq: u64,
+        stamp_ns: u64,
+        kind: PoseFixKind,
+        pose: [f64; 3],
+        sigma_xy_m: f64,
+        sigma_yaw_rad: f64,
+    ) -> Self {
+        Self {
+            seq,
+            stamp_ns,
+            kind: kind as u32,
+            reserved: 0,
+            x_m: pose[0],
+            y_m: pose[1],
+            yaw_rad: pose[2],
+            sigma_xy_m,
+            sigma_yaw_rad,
+        }
+    }
+
     /// The kind, checked.
     pub fn kind(&self) -> Result<PoseFixKind, MessageError> {
         PoseFixKind::from_wire(self.kind)

@@ -9,3 +9,4 @@ pub mod deployment;
 pub mod executive;
 pub mod localisation;
 pub mod planner_node;
+pub mod process;

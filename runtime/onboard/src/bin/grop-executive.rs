@@ -7,25 +7,18 @@
 
 use std::path::PathBuf;
 use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::Ordering;
 use std::time::Duration;
 
 use anyhow::Context;
 use can_bus::{CanBus, SocketCanBus, VirtualCanBus};
 use clap::Parser;
-use grop_onboard::deployment::{CanSpec, Deployment};
+use grop_onboard::deployment::CanSpec;
 use grop_onboard::executive::ur5e_arm::{ArmMotionSettings, Ur5eDevice};
 use grop_onboard::executive::{Executive, ExecutiveConfig, MissionState};
 
 /// Rank of the executive on a simulated clock: after the planner at each instant.
 const EXECUTIVE_CLOCK_RANK: u32 = 20;
-
-static STOP: AtomicBool = AtomicBool::new(false);
-
-extern "C" fn on_signal(_signal: libc::c_int) {
-    // Only an atomic store: async-signal-safe.
-    STOP.store(true, Ordering::Relaxed);
-}
 
 #[derive(Parser, Debug)]
 #[command(
@@ -52,24 +45,9 @@ struct Args {
 fn main() -> anyhow::Result<()> {
     env_logger::Builder::from_env(env_logger::Env::default().default_filter_or("info")).init();
     let args = Args::parse();
-    let mut deployment = Deployment::load(&args.deployment)?;
-    if let Some(namespace) = args.namespace {
-        deployment.namespace = namespace;
-    }
-    if let Some(clock) = args.clock {
-        deployment.clock = clock;
-    }
-    deployment
-        .validate()
-        .context("the deployment with the command-line overrides")?;
-    for signal in [libc::SIGTERM, libc::SIGINT] {
-        let handler: extern "C" fn(libc::c_int) = on_signal;
-        // SAFETY: installs an async-signal-safe handler (one atomic store) for a valid signal.
-        let previous = unsafe { libc::signal(signal, handler as libc::sighandler_t) };
-        if previous == libc::SIG_ERR {
-            anyhow::bail!("installing the handler for signal {signal} failed");
-        }
-    }
+    let deployment =
+        grop_onboard::process::load_deployment(&args.deployment, args.namespace, args.clock)?;
+    let stop = grop_onboard::process::stop_flag()?;
     let scene = world::Scene::load(&deployment.map)
         .with_context(|| format!("the map {}", deployment.map.display()))?;
     let robot = deployment.load_robot().context("the robot file")?;
@@ -133,7 +111,7 @@ fn main() -> anyhow::Result<()> {
         a.host,
         a.rtde_port
     );
-    let state = executive.run(&|| !STOP.load(Ordering::Relaxed), args.exit_when_done);
+    let state = executive.run(&|| !stop.load(Ordering::Relaxed), args.exit_when_done);
     let stats = executive.stats();
     log::info!(
         "grop-executive: {state:?}; {} cycles, {} overruns, {} unloads ok, {} failed",

@@ -4,20 +4,10 @@
 //! env_logger (`RUST_LOG`, default `info`).
 
 use std::path::PathBuf;
-use std::sync::atomic::{AtomicBool, Ordering};
 
 use anyhow::Context;
 use clap::Parser;
-use grop_onboard::deployment::Deployment;
 use grop_onboard::planner_node::{PLANNER_CLOCK_RANK, PlannerNode};
-
-/// Set by the signal handler, read by the loop.
-static STOP: AtomicBool = AtomicBool::new(false);
-
-extern "C" fn on_signal(_signal: libc::c_int) {
-    // Only an atomic store: async-signal-safe.
-    STOP.store(true, Ordering::Relaxed);
-}
 
 #[derive(Parser, Debug)]
 #[command(
@@ -40,24 +30,9 @@ struct Args {
 fn main() -> anyhow::Result<()> {
     env_logger::Builder::from_env(env_logger::Env::default().default_filter_or("info")).init();
     let args = Args::parse();
-    let mut deployment = Deployment::load(&args.deployment)?;
-    if let Some(namespace) = args.namespace {
-        deployment.namespace = namespace;
-    }
-    if let Some(clock) = args.clock {
-        deployment.clock = clock;
-    }
-    deployment
-        .validate()
-        .context("the deployment with the command-line overrides")?;
-    for signal in [libc::SIGTERM, libc::SIGINT] {
-        let handler: extern "C" fn(libc::c_int) = on_signal;
-        // SAFETY: installs an async-signal-safe handler (one atomic store) for a valid signal.
-        let previous = unsafe { libc::signal(signal, handler as libc::sighandler_t) };
-        if previous == libc::SIG_ERR {
-            anyhow::bail!("installing the handler for signal {signal} failed");
-        }
-    }
+    let deployment =
+        grop_onboard::process::load_deployment(&args.deployment, args.namespace, args.clock)?;
+    let stop = grop_onboard::process::stop_flag()?;
     log::info!(
         "grop-planner: deployment {}, namespace `{}`, clock {}, map {}, model {}",
         args.deployment.display(),
@@ -70,7 +45,7 @@ fn main() -> anyhow::Result<()> {
         PlannerNode::from_deployment(&deployment).context("starting the planner node")?;
     let clock = grop_clock::open(&deployment.clock, "grop-planner", PLANNER_CLOCK_RANK)
         .with_context(|| format!("opening clock {}", deployment.clock))?;
-    node.run(clock.as_ref(), &STOP)
+    node.run(clock.as_ref(), stop)
         .context("running the planner node")?;
     let (failures, last) = node.failures();
     log::info!(

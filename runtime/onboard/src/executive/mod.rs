@@ -130,7 +130,7 @@ impl ExecutiveConfig {
                 goal_tolerance_m: 0.02,
                 turn_in_place_above_rad: 0.8,
             },
-            yaw_tolerance_rad: 0.02,
+            yaw_tolerance_rad: 0.008,
             align_gain: 2.0,
             settle: Duration::from_millis(400),
             load_wait: Duration::from_secs(3),

@@ -242,15 +242,24 @@ pub fn solve_place(
         Point3::new(target[0], target[1], target[2]),
         obstacles,
     )?;
-    let above = plan_place(
-        cfg,
-        base,
-        Point3::new(target[0], target[1], target[2] + APPROACH_HEIGHT_M),
-        obstacles,
-    )?;
+    // The approach from above needs a little more reach than the placing pose itself: at the
+    // edge of the workspace lower it, down to none (the last transit waypoint is then the
+    // placing pose), so that whatever the placing check accepts, the arm can do.
+    let above = [1.0, 0.5, 0.25]
+        .iter()
+        .find_map(|share| {
+            plan_place(
+                cfg,
+                base,
+                Point3::new(target[0], target[1], target[2] + share * APPROACH_HEIGHT_M),
+                obstacles,
+            )
+            .ok()
+        })
+        .map_or(place.joints, |p| p.joints);
     Ok(PlaceJoints {
         place: place.joints,
-        above: above.joints,
+        above,
     })
 }
 

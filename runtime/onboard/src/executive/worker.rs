@@ -130,6 +130,14 @@ impl Worker {
                                 &carry,
                                 seed,
                             );
+                            if let Err(e) = &planned {
+                                log::info!(
+                                    "unload at base ({:.3}, {:.3}, {:.3}) for target {target:?}: {e:?}",
+                                    base.x_m,
+                                    base.y_m,
+                                    base.yaw_rad
+                                );
+                            }
                             Answer::Unload(id, planned)
                         }
                     };
