@@ -19,6 +19,15 @@ pub const SCENE_FORMAT_VERSION: u32 = 1;
 /// (docs/architecture.md): every overhead view is centred on this line.
 pub const TABLE_CENTER_Y_M: f64 = 6.0;
 
+/// Longest side of a room a scene may have, m (the paper's room is 20 m x 12.2 m).
+pub const MAX_ROOM_SIDE_M: f64 = 100.0;
+/// Most chairs in a scene.
+pub const MAX_CHAIRS: usize = 1000;
+/// Most targets in a scene (the runtime's plan and task masks hold 64 objects).
+pub const MAX_TARGETS: usize = 64;
+/// Most segments of the banquet table.
+pub const MAX_TABLE_SEGMENTS: u32 = 100;
+
 /// A complete dinner-table world.
 #[derive(Serialize, Deserialize, Clone, Debug, PartialEq)]
 #[serde(deny_unknown_fields)]
@@ -526,6 +535,37 @@ impl Scene {
             return Err(InvalidField::new(
                 "room",
                 "the walls must enclose at least 1 m x 1 m (x_min < x_max, y_min < y_max)",
+            ));
+        }
+        // Bounds before anything is sized from the scene (the occupancy grid has a cell per
+        // 0.1 m: a room 10^7 m long would ask for terabytes).
+        if room.x_max_m - room.x_min_m > MAX_ROOM_SIDE_M
+            || room.y_max_m - room.y_min_m > MAX_ROOM_SIDE_M
+        {
+            return Err(InvalidField::new(
+                "room",
+                format!("the walls may enclose at most {MAX_ROOM_SIDE_M} m x {MAX_ROOM_SIDE_M} m"),
+            ));
+        }
+        if self.chairs.len() > MAX_CHAIRS {
+            return Err(InvalidField::new(
+                "chairs",
+                format!("{} chairs, at most {MAX_CHAIRS}", self.chairs.len()),
+            ));
+        }
+        if self.targets.len() > MAX_TARGETS {
+            return Err(InvalidField::new(
+                "targets",
+                format!("{} targets, at most {MAX_TARGETS}", self.targets.len()),
+            ));
+        }
+        if self.banquet_table.segment_count > MAX_TABLE_SEGMENTS {
+            return Err(InvalidField::new(
+                "banquet_table.segment_count",
+                format!(
+                    "{}, at most {MAX_TABLE_SEGMENTS}",
+                    self.banquet_table.segment_count
+                ),
             ));
         }
 

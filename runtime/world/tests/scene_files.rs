@@ -258,3 +258,25 @@ fn base_collision_model_is_checked() {
     let msg = robot_error(&good.replacen("model = \"footprint\"", "model = \"hovercraft\"", 1));
     assert!(msg.contains("hovercraft"), "{msg}");
 }
+
+#[test]
+fn oversized_rooms_and_counts_are_refused_before_anything_is_sized_from_them() {
+    // A room 10^7 m long used to reach the occupancy grid and abort on a 12 GB allocation.
+    let mut scene = Scene::load(data_dir().join("example-scene.toml")).unwrap();
+    scene.room.x_max_m = 1.0e7;
+    let text = scene.to_toml_string().unwrap();
+    let (err, msg) = scene_error(&text);
+    assert!(matches!(err, SceneError::Invalid { .. }), "{msg}");
+    assert!(msg.contains("room") && msg.contains("at most"), "{msg}");
+
+    let mut scene = Scene::load(data_dir().join("example-scene.toml")).unwrap();
+    let t = scene.targets[0];
+    scene.targets = vec![t; world::scene::MAX_TARGETS + 1];
+    let (_, msg) = scene_error(&scene.to_toml_string().unwrap());
+    assert!(msg.contains("targets"), "{msg}");
+
+    let mut scene = Scene::load(data_dir().join("example-scene.toml")).unwrap();
+    scene.banquet_table.segment_count = world::scene::MAX_TABLE_SEGMENTS + 1;
+    let (_, msg) = scene_error(&scene.to_toml_string().unwrap());
+    assert!(msg.contains("segment_count"), "{msg}");
+}
