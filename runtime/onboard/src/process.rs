@@ -2,7 +2,7 @@
 //! overrides, and turn SIGTERM / SIGINT into a flag their loops check (so they stop the robot
 //! before exiting instead of dying mid-command).
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 
 use anyhow::Context;
@@ -28,6 +28,27 @@ pub fn stop_flag() -> anyhow::Result<&'static AtomicBool> {
         }
     }
     Ok(&STOP)
+}
+
+/// The command-line options both binaries take.
+#[derive(clap::Args, Debug, Clone)]
+pub struct DeploymentArgs {
+    /// Deployment file (TOML).
+    #[arg(long, value_name = "FILE")]
+    pub deployment: PathBuf,
+    /// iceoryx2 namespace instead of the deployment's.
+    #[arg(long)]
+    pub namespace: Option<String>,
+    /// Clock instead of the deployment's: `wall` or `sim:<name>`.
+    #[arg(long)]
+    pub clock: Option<String>,
+}
+
+impl DeploymentArgs {
+    /// The deployment these options name, overrides applied and validated.
+    pub fn load(&self) -> anyhow::Result<Deployment> {
+        load_deployment(&self.deployment, self.namespace.clone(), self.clock.clone())
+    }
 }
 
 /// Loads the deployment file and applies the `--namespace` / `--clock` overrides, validated

@@ -5,7 +5,6 @@
 //! the arm before exiting. If it is killed instead, the base's own 0.5 s loss-of-command timeout
 //! and the UR controller's RTDE watchdog stop both.
 
-use std::path::PathBuf;
 use std::sync::Arc;
 use std::sync::atomic::Ordering;
 use std::time::Duration;
@@ -27,15 +26,8 @@ const EXECUTIVE_CLOCK_RANK: u32 = 20;
     version
 )]
 struct Args {
-    /// Deployment file (TOML).
-    #[arg(long, value_name = "FILE")]
-    deployment: PathBuf,
-    /// iceoryx2 namespace instead of the deployment's.
-    #[arg(long)]
-    namespace: Option<String>,
-    /// Clock instead of the deployment's: `wall` or `sim:<name>`.
-    #[arg(long)]
-    clock: Option<String>,
+    #[command(flatten)]
+    deployment: grop_onboard::process::DeploymentArgs,
     /// Exit when the mission has finished or aborted (default: hold the base at zero until
     /// stopped, as on the robot).
     #[arg(long)]
@@ -45,8 +37,7 @@ struct Args {
 fn main() -> anyhow::Result<()> {
     env_logger::Builder::from_env(env_logger::Env::default().default_filter_or("info")).init();
     let args = Args::parse();
-    let deployment =
-        grop_onboard::process::load_deployment(&args.deployment, args.namespace, args.clock)?;
+    let deployment = args.deployment.load()?;
     let stop = grop_onboard::process::stop_flag()?;
     let scene = world::Scene::load(&deployment.map)
         .with_context(|| format!("the map {}", deployment.map.display()))?;

@@ -3,8 +3,6 @@
 //! 10 ms loop on the deployment's clock until SIGTERM or SIGINT, then exits cleanly. Logs with
 //! env_logger (`RUST_LOG`, default `info`).
 
-use std::path::PathBuf;
-
 use anyhow::Context;
 use clap::Parser;
 use grop_onboard::planner_node::{PLANNER_CLOCK_RANK, PlannerNode};
@@ -16,26 +14,18 @@ use grop_onboard::planner_node::{PLANNER_CLOCK_RANK, PlannerNode};
     version
 )]
 struct Args {
-    /// Deployment file (TOML).
-    #[arg(long, value_name = "FILE")]
-    deployment: PathBuf,
-    /// iceoryx2 namespace instead of the deployment's.
-    #[arg(long)]
-    namespace: Option<String>,
-    /// Clock instead of the deployment's: `wall` or `sim:<name>`.
-    #[arg(long)]
-    clock: Option<String>,
+    #[command(flatten)]
+    deployment: grop_onboard::process::DeploymentArgs,
 }
 
 fn main() -> anyhow::Result<()> {
     env_logger::Builder::from_env(env_logger::Env::default().default_filter_or("info")).init();
     let args = Args::parse();
-    let deployment =
-        grop_onboard::process::load_deployment(&args.deployment, args.namespace, args.clock)?;
+    let deployment = args.deployment.load()?;
     let stop = grop_onboard::process::stop_flag()?;
     log::info!(
         "grop-planner: deployment {}, namespace `{}`, clock {}, map {}, model {}",
-        args.deployment.display(),
+        args.deployment.deployment.display(),
         deployment.namespace,
         deployment.clock,
         deployment.map.display(),
