@@ -53,41 +53,30 @@ pub trait Clock: Send + Sync {
     fn end_hold(&self) {}
 }
 
-impl<C: Clock + ?Sized> Clock for Box<C> {
-    fn now(&self) -> Duration {
-        (**self).now()
-    }
-    fn sleep_until(&self, deadline: Duration) {
-        (**self).sleep_until(deadline)
-    }
-    fn is_lost(&self) -> bool {
-        (**self).is_lost()
-    }
-    fn begin_hold(&self) {
-        (**self).begin_hold()
-    }
-    fn end_hold(&self) {
-        (**self).end_hold()
-    }
+/// A clock behind a pointer is that clock.
+macro_rules! forward_clock {
+    ($($ptr:ty),*) => {$(
+        impl<C: Clock + ?Sized> Clock for $ptr {
+            fn now(&self) -> Duration {
+                (**self).now()
+            }
+            fn sleep_until(&self, deadline: Duration) {
+                (**self).sleep_until(deadline)
+            }
+            fn is_lost(&self) -> bool {
+                (**self).is_lost()
+            }
+            fn begin_hold(&self) {
+                (**self).begin_hold()
+            }
+            fn end_hold(&self) {
+                (**self).end_hold()
+            }
+        }
+    )*};
 }
 
-impl<C: Clock + ?Sized> Clock for std::sync::Arc<C> {
-    fn now(&self) -> Duration {
-        (**self).now()
-    }
-    fn sleep_until(&self, deadline: Duration) {
-        (**self).sleep_until(deadline)
-    }
-    fn is_lost(&self) -> bool {
-        (**self).is_lost()
-    }
-    fn begin_hold(&self) {
-        (**self).begin_hold()
-    }
-    fn end_hold(&self) {
-        (**self).end_hold()
-    }
-}
+forward_clock!(Box<C>, std::sync::Arc<C>);
 
 /// Why a clock could not be opened.
 #[derive(Debug, thiserror::Error)]

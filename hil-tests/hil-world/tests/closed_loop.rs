@@ -46,6 +46,28 @@ fn finish(running: RunningMission) -> WorldReport {
         .expect("the world reports")
 }
 
+/// Starts a mission and waits until the world reports `key` above `above` (the base driving,
+/// the arm moving).
+fn start_and_wait_for(spec: &MissionSpec, key: &str, above: f64, timeout_s: u64) -> RunningMission {
+    let running = start(spec);
+    let seen = running.wait_for_line(
+        Duration::from_secs(timeout_s),
+        |l| value(l, key).is_some_and(|v| v > above),
+        &mut |_| {},
+    );
+    assert!(seen.is_some(), "{key} never exceeded {above}");
+    running
+}
+
+/// The world's record of `name`'s death.
+fn death_of<'a>(report: &'a WorldReport, name: &str) -> &'a hil_world::report::DeathRecord {
+    report
+        .deaths
+        .iter()
+        .find(|d| d.name == name)
+        .unwrap_or_else(|| panic!("the world did not notice {name} die: {:?}", report.deaths))
+}
+
 /// A progress line's value of `key` (`progress t=1.0 x=.. v=0.35 arm=0.0 ...`).
 fn value(line: &str, key: &str) -> Option<f64> {
     line.split_whitespace()
@@ -109,22 +131,11 @@ fn a_mission_runs_from_camera_frame_to_can_frame_and_is_reported() {
 
 #[test]
 fn killing_the_executive_while_driving_stops_the_base_by_its_own_timeout() {
-    let spec = spec("kill-exec-base", 5);
-    let mut running = start(&spec);
-    let moving = running.wait_for_line(
-        Duration::from_secs(120),
-        |l| value(l, "v").is_some_and(|v| v > 0.3),
-        &mut |_| {},
-    );
-    assert!(moving.is_some(), "the base never drove");
+    let mut running = start_and_wait_for(&spec("kill-exec-base", 5), "v", 0.3, 120);
     running.kill_executive();
     let report = finish(running);
     assert_eq!(report.end, MissionEnd::ExecutiveDied);
-    let death = report
-        .deaths
-        .iter()
-        .find(|d| d.name == "grop-executive")
-        .expect("the world noticed the executive die");
+    let death = death_of(&report, "grop-executive");
     assert!(death.base_speed_then_mps > 0.2, "{death:?}");
     let stopped = death.base_stopped_at_s.expect("the base stopped");
     // The base's own loss-of-command timeout (0.5 s) plus its deceleration ramp (NVM 3.9 m/s^2)
@@ -149,21 +160,10 @@ fn killing_the_executive_while_driving_stops_the_base_by_its_own_timeout() {
 
 #[test]
 fn killing_the_executive_while_the_arm_moves_stops_the_arm_by_the_controller_watchdog() {
-    let spec = spec("kill-exec-arm", 4);
-    let mut running = start(&spec);
-    let moving = running.wait_for_line(
-        Duration::from_secs(300),
-        |l| value(l, "arm").is_some_and(|v| v > 0.3),
-        &mut |_| {},
-    );
-    assert!(moving.is_some(), "the arm never moved");
+    let mut running = start_and_wait_for(&spec("kill-exec-arm", 4), "arm", 0.3, 300);
     running.kill_executive();
     let report = finish(running);
-    let death = report
-        .deaths
-        .iter()
-        .find(|d| d.name == "grop-executive")
-        .expect("the world noticed the executive die");
+    let death = death_of(&report, "grop-executive");
     assert!(death.arm_speed_then_radps > 0.2, "{death:?}");
     let stopped = death.arm_stopped_at_s.expect("the arm stopped");
     println!(

@@ -369,6 +369,30 @@ impl Harness {
         false
     }
 
+    /// Runs until the mission has started (base in tractor mode, localised, plan asked for).
+    fn start_mission(&mut self) {
+        assert!(
+            self.run_until(Duration::from_secs(10), false, |h| h.exec.state()
+                == MissionState::Running),
+            "the mission never started: {:?}",
+            self.seen
+        );
+    }
+
+    /// Runs until the simulated base drives faster than `speed_mps`.
+    fn drive_until_faster_than(&mut self, speed_mps: f32) {
+        assert!(
+            self.run_until(Duration::from_secs(10), false, |h| h
+                .base
+                .sim()
+                .velocity()
+                .0
+                .abs()
+                > speed_mps),
+            "the base never reached {speed_mps} m/s"
+        );
+    }
+
     fn last_state(&self) -> Option<BaseStateMsg> {
         let mut last = None;
         while let Some(s) = self.states.try_recv().unwrap() {
@@ -382,10 +406,7 @@ impl Harness {
 fn a_whole_mission_runs_and_its_cycles_allocate_nothing_but_iceoryx2_loans() {
     let mut h = Harness::new("mission");
     // Start-up: the driver configures the base, enters tractor mode, the first fix arrives.
-    assert!(
-        h.run_until(Duration::from_secs(5), false, |h| h.exec.state()
-            == MissionState::Running)
-    );
+    h.start_mission();
     ALLOCATIONS.store(0, Ordering::Relaxed);
     TRACE.store(
         std::env::var_os("GROP_ALLOC_TRACE").is_some(),
@@ -448,16 +469,9 @@ fn a_whole_mission_runs_and_its_cycles_allocate_nothing_but_iceoryx2_loans() {
 #[test]
 fn a_silent_base_aborts_and_commands_zero() {
     let mut h = Harness::new("silent");
-    assert!(
-        h.run_until(Duration::from_secs(5), false, |h| h.exec.state()
-            == MissionState::Running)
-    );
+    h.start_mission();
     // Drive until the base moves.
-    assert!(h.run_until(
-        Duration::from_secs(10),
-        false,
-        |h| h.base.sim().velocity().0.abs() > 0.2
-    ));
+    h.drive_until_faster_than(0.2);
     h.base.sim_mut().set_silent(true);
     assert!(h.run_until(Duration::from_secs(2), false, |h| matches!(
         h.exec.state(),
@@ -481,15 +495,8 @@ fn a_silent_base_aborts_and_commands_zero() {
 #[test]
 fn a_dead_planner_stops_the_base_within_its_deceleration_ramp() {
     let mut h = Harness::new("planner-dead");
-    assert!(
-        h.run_until(Duration::from_secs(5), false, |h| h.exec.state()
-            == MissionState::Running)
-    );
-    assert!(h.run_until(
-        Duration::from_secs(10),
-        false,
-        |h| h.base.sim().velocity().0.abs() > 0.3
-    ));
+    h.start_mission();
+    h.drive_until_faster_than(0.3);
     let speed = f64::from(h.base.sim().velocity().0.abs());
     h.planner_alive = false;
     let died = h.now;
@@ -520,15 +527,8 @@ fn a_dead_planner_stops_the_base_within_its_deceleration_ramp() {
 #[test]
 fn missing_localisation_holds_the_base_until_fixes_return() {
     let mut h = Harness::new("no-fixes");
-    assert!(
-        h.run_until(Duration::from_secs(5), false, |h| h.exec.state()
-            == MissionState::Running)
-    );
-    assert!(h.run_until(
-        Duration::from_secs(10),
-        false,
-        |h| h.base.sim().velocity().0.abs() > 0.2
-    ));
+    h.start_mission();
+    h.drive_until_faster_than(0.2);
     h.fixes_on = false;
     assert!(h.run_until(Duration::from_secs(4), false, |h| {
         h.base.sim().velocity().0.abs() < 0.005
@@ -574,10 +574,7 @@ fn realised_stops_follow_the_trial_simulators_navigation_noise() {
             .map(|g| TaskStep::navigate(g[0], g[1], g[2], 6.0))
             .collect(),
     );
-    assert!(
-        h.run_until(Duration::from_secs(10), false, |h| h.exec.state()
-            == MissionState::Running)
-    );
+    h.start_mission();
     let mut residuals = Vec::new();
     let mut seen = h.seen.len();
     let finished = h.run_until(Duration::from_secs(3000), false, |h| {

@@ -34,8 +34,7 @@ use grop_clock::Clock;
 use grop_ipc::{
     ArmSafety, ArmStateMsg, BaseMode as IpcBaseMode, BasePoseMsg, BaseStateMsg, EventKind,
     EventMsg, HeartbeatMsg, IpcNode, MAX_TASK_STEPS, PoseFixKind, ProcessRole, ReplanReason,
-    ReplanRequestMsg, TableSide, TaskPlanMsg, TaskStep, TaskStepKind, TopicPublisher,
-    TopicSubscriber,
+    ReplanRequestMsg, TaskPlanMsg, TaskStep, TaskStepKind, TopicPublisher, TopicSubscriber,
 };
 use motion_control::follower::{FollowStep, FollowerConfig, PathFollower};
 use motion_control::{Pose2, Twist};
@@ -1279,9 +1278,4 @@ fn zero_request() -> ReplanRequestMsg {
         reserved: 0,
         failed_goal_m: [0.0; 2],
     }
-}
-
-/// The side an unload step faces (for reports).
-pub fn step_side(step: &TaskStep) -> Option<TableSide> {
-    step.side().ok()
 }
