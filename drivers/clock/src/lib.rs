@@ -22,6 +22,7 @@
 //! ```
 
 mod futex;
+pub mod rt;
 mod sim;
 
 use std::time::Duration;
