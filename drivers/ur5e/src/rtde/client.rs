@@ -11,8 +11,8 @@ use std::time::{Duration, Instant};
 use thiserror::Error;
 
 use super::wire::{
-    self, ControllerVersion, FrameError, PackageType, RtdeType, RtdeValue, SetupField, TextLevel,
-    TextMessage, ValueDecodeError,
+    self, ControllerVersion, FrameError, HEADER_LEN, PackageType, RtdeType, RtdeValue, SetupField,
+    TextLevel, TextMessage, ValueDecodeError,
 };
 
 /// Default RTDE port of a UR controller.
@@ -40,6 +40,83 @@ impl Default for RtdeTimeouts {
             write: Duration::from_millis(500),
         }
     }
+}
+
+/// When and how [`RtdeClient::reconnect`] retries.
+///
+/// Attempt 1 starts at once; before attempt `k > 1` the client sleeps
+/// `min(first_backoff * 2^(k-2), max_backoff)`. Each attempt is bounded by the client's
+/// [`RtdeTimeouts`] (connect, then one reply per setup request).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RtdeReconnectPolicy {
+    /// Attempts in all (0 is taken as 1).
+    pub attempts: u32,
+    /// Sleep before the second attempt.
+    pub first_backoff: Duration,
+    /// Longest sleep between two attempts.
+    pub max_backoff: Duration,
+}
+
+impl Default for RtdeReconnectPolicy {
+    /// 5 attempts, 100 ms doubling to at most 1 s: about 2.5 s of backoff in all, the time a
+    /// controller's RTDE server takes to come back after a restart of its program.
+    fn default() -> Self {
+        Self {
+            attempts: 5,
+            first_backoff: Duration::from_millis(100),
+            max_backoff: Duration::from_secs(1),
+        }
+    }
+}
+
+/// A package the client took off the stream and dropped because it was malformed. Counted
+/// ([`RtdeClient::malformed_packages`]) and kept as [`RtdeClient::last_malformed`]; receiving
+/// goes on with the next package.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Error)]
+#[non_exhaustive]
+pub enum RtdeMalformed {
+    /// A size field below the 3-byte header: the framing was lost, and `skipped` bytes were
+    /// dropped to reach the next plausible header ([`wire::resync_offset`]).
+    #[error("size field {size} below the 3-byte header; {skipped} bytes dropped to resynchronise")]
+    BadSize {
+        /// The size field as received.
+        size: u16,
+        /// Bytes dropped.
+        skipped: usize,
+    },
+    /// A type letter RTDE does not define.
+    #[error("unknown package type {type_byte:#04x} with {len} payload bytes")]
+    UnknownType {
+        /// The type byte.
+        type_byte: u8,
+        /// Its payload length.
+        len: usize,
+    },
+    /// A data package without even a recipe id.
+    #[error("empty data package")]
+    EmptyData,
+    /// A data package for another recipe than the output recipe.
+    #[error("data package for recipe {got}, the output recipe is {expected}")]
+    WrongRecipe {
+        /// The recipe id in the package.
+        got: u8,
+        /// The output recipe's id.
+        expected: u8,
+    },
+    /// A data package whose fields do not match the output recipe (too short or too long).
+    #[error("data package does not match output recipe {recipe_id}: {source}")]
+    DataMismatch {
+        /// The output recipe id.
+        recipe_id: u8,
+        /// What did not match.
+        source: ValueDecodeError,
+    },
+    /// A text message whose lengths run past its payload.
+    #[error("undecodable text message of {len} payload bytes")]
+    BadText {
+        /// Payload length.
+        len: usize,
+    },
 }
 
 /// Errors that end an RTDE connection or a request on it.
@@ -183,13 +260,54 @@ pub enum RtdeReceiveError {
     /// No output recipe is set up, or the stream is not started.
     #[error("RTDE receive without a started output recipe")]
     NotStarted,
-    /// A data package does not match the output recipe.
-    #[error("RTDE data package does not match output recipe {recipe_id}: {source}")]
-    BadPackage {
-        /// The output recipe id.
-        recipe_id: u8,
-        /// Decode failure.
-        source: ValueDecodeError,
+    /// No valid data package before the deadline, but malformed packages came (each was
+    /// dropped; the next receive starts after them).
+    #[error(
+        "no valid RTDE data package before the deadline; {count} malformed packages dropped, the last: {last}"
+    )]
+    Malformed {
+        /// Malformed packages during this receive.
+        count: u64,
+        /// The last of them.
+        last: RtdeMalformed,
+    },
+}
+
+/// Why one attempt of [`RtdeClient::reconnect`] failed.
+#[derive(Debug, Error)]
+#[non_exhaustive]
+pub enum RtdeReconnectCause {
+    /// TCP connect or the protocol version request failed.
+    #[error(transparent)]
+    Connect(#[from] RtdeConnectError),
+    /// Re-sending a recipe setup failed.
+    #[error("re-sending the RTDE recipe setup: {0}")]
+    Setup(#[from] RtdeSetupError),
+    /// Restarting the output stream failed.
+    #[error("restarting the RTDE stream: {0}")]
+    Start(#[from] RtdeRequestError),
+    /// The controller answered a re-sent recipe with other types (or, for inputs, another
+    /// id) than before, so values and recipes the caller holds would be wrong.
+    #[error("the controller answered the re-sent {recipe} recipe with other ids or types")]
+    RecipeChanged {
+        /// `"output"` or `"input"`.
+        recipe: &'static str,
+    },
+}
+
+/// Errors of [`RtdeClient::reconnect`].
+#[derive(Debug, Error)]
+#[non_exhaustive]
+pub enum RtdeReconnectError {
+    /// Every attempt failed; the client is as it was before the call (link down).
+    #[error("RTDE reconnect to {addr} gave up after {attempts} attempts; last: {last}")]
+    GaveUp {
+        /// Controller address.
+        addr: SocketAddr,
+        /// Attempts made.
+        attempts: u32,
+        /// Why the last attempt failed.
+        last: RtdeReconnectCause,
     },
 }
 
@@ -301,6 +419,9 @@ pub struct RtdeClient {
     inputs: Vec<InputRecipe>,
     data_packages: u64,
     text_messages: u64,
+    malformed: u64,
+    last_malformed: Option<RtdeMalformed>,
+    reconnects: u64,
 }
 
 impl RtdeClient {
@@ -316,13 +437,7 @@ impl RtdeClient {
             .ok_or_else(|| {
                 RtdeConnectError::Resolve(io::Error::new(io::ErrorKind::NotFound, "no address"))
             })?;
-        let io_err = |source| RtdeLinkError::Io { addr, source };
-        let stream = TcpStream::connect_timeout(&addr, timeouts.connect).map_err(io_err)?;
-        // Small packages at 500 Hz: Nagle would batch them and add latency.
-        stream.set_nodelay(true).map_err(io_err)?;
-        stream
-            .set_write_timeout(Some(timeouts.write))
-            .map_err(io_err)?;
+        let stream = Self::open(addr, &timeouts)?;
         let mut client = Self {
             stream,
             addr,
@@ -336,20 +451,132 @@ impl RtdeClient {
             inputs: Vec::new(),
             data_packages: 0,
             text_messages: 0,
+            malformed: 0,
+            last_malformed: None,
+            reconnects: 0,
         };
-        let reply = client.request(
+        client.negotiate()?;
+        Ok(client)
+    }
+
+    fn open(addr: SocketAddr, timeouts: &RtdeTimeouts) -> Result<TcpStream, RtdeLinkError> {
+        let io_err = |source| RtdeLinkError::Io { addr, source };
+        let stream = TcpStream::connect_timeout(&addr, timeouts.connect).map_err(io_err)?;
+        // Small packages at 500 Hz: Nagle would batch them and add latency.
+        stream.set_nodelay(true).map_err(io_err)?;
+        stream
+            .set_write_timeout(Some(timeouts.write))
+            .map_err(io_err)?;
+        Ok(stream)
+    }
+
+    /// Asks for protocol version 2 (`V`).
+    fn negotiate(&mut self) -> Result<(), RtdeConnectError> {
+        let reply = self.request(
             PackageType::RequestProtocolVersion,
             &wire::PROTOCOL_VERSION.to_be_bytes(),
             "protocol version reply",
         )?;
         match reply.as_slice() {
-            [1] => Ok(client),
+            [1] => Ok(()),
             [0] => Err(RtdeConnectError::VersionRefused {
-                addr,
+                addr: self.addr,
                 version: wire::PROTOCOL_VERSION,
             }),
             other => Err(RtdeConnectError::BadVersionReply { len: other.len() }),
         }
+    }
+
+    /// Reconnects after a lost link, under `policy`, and restores the session: a new TCP
+    /// connection, protocol 2, the output recipe and every input recipe re-sent in their
+    /// original order (same names, same frequency), and `S` if the stream was started.
+    ///
+    /// The old socket is shut down first; bytes still buffered from it are dropped. Recipes
+    /// the caller holds stay valid: the controller numbers input recipes per connection in
+    /// request order, so re-sending them in order gives the same ids, and an answer with other
+    /// ids or types fails the attempt ([`RtdeReconnectCause::RecipeChanged`]). Data package
+    /// sequence numbers continue across the reconnect. Blocks for up to `attempts` x (the
+    /// connect timeout + a reply timeout per request) plus the backoffs: call it with the
+    /// arm stopped, never from a control cycle. When every attempt fails the client is left
+    /// as before the call (same recipes and state, link down), so it can be called again.
+    pub fn reconnect(&mut self, policy: &RtdeReconnectPolicy) -> Result<(), RtdeReconnectError> {
+        let _ = self.stream.shutdown(std::net::Shutdown::Both);
+        let attempts = policy.attempts.max(1);
+        let mut backoff = policy.first_backoff;
+        let mut attempt = 1;
+        loop {
+            match self.restore_session() {
+                Ok(()) => {
+                    self.reconnects += 1;
+                    log::info!("RTDE reconnected to {} (attempt {attempt})", self.addr);
+                    return Ok(());
+                }
+                Err(last) if attempt >= attempts => {
+                    return Err(RtdeReconnectError::GaveUp {
+                        addr: self.addr,
+                        attempts,
+                        last,
+                    });
+                }
+                Err(e) => {
+                    log::warn!(
+                        "RTDE reconnect to {} attempt {attempt}/{attempts}: {e}",
+                        self.addr
+                    );
+                }
+            }
+            std::thread::sleep(backoff);
+            backoff = backoff.saturating_mul(2).min(policy.max_backoff);
+            attempt += 1;
+        }
+    }
+
+    /// Number of successful [`Self::reconnect`] calls.
+    pub fn reconnects(&self) -> u64 {
+        self.reconnects
+    }
+
+    /// One reconnect attempt; on failure the recipes and state are put back as they were.
+    fn restore_session(&mut self) -> Result<(), RtdeReconnectCause> {
+        let (output, inputs, state) = (self.output.clone(), self.inputs.clone(), self.state);
+        let result = self.replay_session(output.as_ref(), &inputs, state);
+        if result.is_err() {
+            self.output = output;
+            self.inputs = inputs;
+            self.state = state;
+        }
+        result
+    }
+
+    fn replay_session(
+        &mut self,
+        output: Option<&OutputRecipe>,
+        inputs: &[InputRecipe],
+        state: RtdeState,
+    ) -> Result<(), RtdeReconnectCause> {
+        self.stream = Self::open(self.addr, &self.timeouts).map_err(RtdeConnectError::from)?;
+        self.rx_start = 0;
+        self.rx_end = 0;
+        self.state = RtdeState::Paused;
+        self.negotiate()?;
+        if let Some(old) = output {
+            let names: Vec<&str> = old.names.iter().map(String::as_str).collect();
+            if self.setup_outputs(&names, old.frequency_hz)?.types != old.types {
+                return Err(RtdeReconnectCause::RecipeChanged { recipe: "output" });
+            }
+        }
+        self.inputs.clear();
+        for old in inputs {
+            let names: Vec<&str> = old.names.iter().map(String::as_str).collect();
+            let new = self.setup_inputs(&names)?;
+            if new.id != old.id || new.types != old.types {
+                return Err(RtdeReconnectCause::RecipeChanged { recipe: "input" });
+            }
+        }
+        if state == RtdeState::Started {
+            self.start()?;
+        }
+        Ok(())
     }
 
     /// The controller's address.
@@ -370,6 +597,17 @@ impl RtdeClient {
     /// Number of text messages received (each is also logged).
     pub fn text_messages(&self) -> u64 {
         self.text_messages
+    }
+
+    /// Number of malformed packages taken off the stream and dropped on this client (over
+    /// reconnects).
+    pub fn malformed_packages(&self) -> u64 {
+        self.malformed
+    }
+
+    /// The most recent malformed package, if any.
+    pub fn last_malformed(&self) -> Option<RtdeMalformed> {
+        self.last_malformed
     }
 
     /// Asks the controller for its version (`v`).
@@ -564,10 +802,14 @@ impl RtdeClient {
 
     /// Waits up to `timeout` for data and stores the **newest** data package in `out`.
     ///
-    /// Every package already buffered in the socket is read; older data packages are counted
-    /// in `out.skipped` and dropped, text messages are logged. No data within `timeout` is a
-    /// [`RtdeLinkError::Timeout`]: for a 500 Hz stream that means the controller or the link
-    /// is gone, and the caller must stop the arm.
+    /// Every package already buffered in the socket is read, until the socket is empty or the
+    /// deadline has passed (a controller that floods always has more; the call still returns
+    /// by its deadline, with the newest package read so far); older data packages are counted
+    /// in `out.skipped` and dropped, text messages are logged, malformed packages are dropped
+    /// and counted ([`Self::malformed_packages`]). No data within `timeout` is a
+    /// [`RtdeLinkError::Timeout`] (or [`RtdeReceiveError::Malformed`] when only malformed
+    /// packages came): for a 500 Hz stream that means the controller or the link is gone, and
+    /// the caller must stop the arm.
     pub fn receive_latest(
         &mut self,
         out: &mut DataPackage,
@@ -577,18 +819,29 @@ impl RtdeClient {
             return Err(RtdeReceiveError::NotStarted);
         }
         let deadline = Instant::now() + timeout;
+        let malformed_before = self.malformed;
         let mut got = 0u32;
         loop {
-            got += self.drain_buffered(out)?;
+            got = got.saturating_add(self.drain_buffered(out)?);
             if got > 0 {
-                // Take whatever else the kernel already holds, without waiting.
-                if self.fill_nonblocking()? {
+                // Take whatever else the kernel already holds, without waiting and only until
+                // the deadline.
+                if Instant::now() < deadline && self.fill_nonblocking()? {
                     continue;
                 }
                 out.skipped = got - 1;
                 return Ok(());
             }
-            self.fill(deadline, timeout, "data package")?;
+            match self.fill(deadline, timeout, "data package") {
+                Ok(()) => {}
+                Err(RtdeLinkError::Timeout { .. }) if self.malformed > malformed_before => {
+                    return Err(RtdeReceiveError::Malformed {
+                        count: self.malformed - malformed_before,
+                        last: self.last_malformed.unwrap_or(RtdeMalformed::EmptyData),
+                    });
+                }
+                Err(e) => return Err(e.into()),
+            }
         }
     }
 
@@ -609,10 +862,15 @@ impl RtdeClient {
         }
         let deadline = Instant::now() + wait;
         let mut got = 0u32;
+        let mut first_read = true;
         loop {
-            got += self.drain_buffered(out)?;
-            // Take whatever the kernel already holds, without waiting.
-            if self.fill_nonblocking()? {
+            got = got.saturating_add(self.drain_buffered(out)?);
+            // Take whatever the kernel already holds, without waiting: one read always (so a
+            // zero wait still sees the package that is there), more only until the deadline,
+            // since a controller that floods always has more.
+            let may_read = first_read || Instant::now() < deadline;
+            first_read = false;
+            if may_read && self.fill_nonblocking()? {
                 continue;
             }
             if got > 0 {
@@ -631,75 +889,121 @@ impl RtdeClient {
     }
 
     /// Decodes every complete package in the buffer; returns the number of data packages.
+    /// Every package is consumed, whatever it holds: a malformed one is counted and dropped.
     fn drain_buffered(&mut self, out: &mut DataPackage) -> Result<u32, RtdeReceiveError> {
         let mut count = 0;
-        loop {
-            let buf = &self.rx[self.rx_start..self.rx_end];
-            let Some((pkg, used)) =
-                wire::split_package(buf).map_err(|source| RtdeLinkError::Frame {
-                    addr: self.addr,
-                    source,
-                })?
-            else {
-                return Ok(count);
-            };
-            match PackageType::from_byte(pkg.type_byte) {
-                Some(PackageType::DataPackage) => {
-                    let recipe = self.output.as_ref().ok_or(RtdeReceiveError::NotStarted)?;
-                    let (&id, fields) =
-                        pkg.payload
-                            .split_first()
-                            .ok_or(RtdeReceiveError::BadPackage {
-                                recipe_id: recipe.id,
-                                source: ValueDecodeError::Truncated {
-                                    index: 0,
-                                    ty: RtdeType::Uint8,
-                                    needed: 1,
-                                    available: 0,
-                                },
-                            })?;
-                    if id != recipe.id {
-                        log::warn!(
-                            "RTDE data package for recipe {id}, expected {}; decoding anyway",
-                            recipe.id
-                        );
+        while let Some((type_byte, start, end)) = self.next_package() {
+            let recipe = self.output.as_ref().ok_or(RtdeReceiveError::NotStarted)?;
+            let payload = &self.rx[start..end];
+            let malformed = match PackageType::from_byte(type_byte) {
+                Some(PackageType::DataPackage) => match Self::decode_data(recipe, payload, out) {
+                    Ok(()) => {
+                        self.data_packages += 1;
+                        out.sequence = self.data_packages;
+                        out.received_at = Instant::now();
+                        count += 1;
+                        None
                     }
-                    wire::decode_fields(&recipe.types, fields, &mut out.values).map_err(
-                        |source| RtdeReceiveError::BadPackage {
-                            recipe_id: recipe.id,
-                            source,
-                        },
-                    )?;
-                    self.data_packages += 1;
-                    out.sequence = self.data_packages;
-                    out.received_at = Instant::now();
-                    count += 1;
-                }
+                    Err(m) => Some(m),
+                },
                 Some(PackageType::TextMessage) => {
-                    Self::log_text(pkg.payload);
                     self.text_messages += 1;
+                    Self::log_text(payload).err()
                 }
-                _ => log::warn!(
-                    "RTDE: unexpected package type {:?} while streaming; ignored",
-                    pkg.type_byte as char
-                ),
+                Some(other) => {
+                    log::warn!("RTDE: unexpected package type {other:?} while streaming; ignored");
+                    None
+                }
+                None => Some(RtdeMalformed::UnknownType {
+                    type_byte,
+                    len: payload.len(),
+                }),
+            };
+            if let Some(m) = malformed {
+                Self::note_malformed(self.addr, &mut self.malformed, &mut self.last_malformed, m);
             }
-            self.rx_start += used;
+        }
+        Ok(count)
+    }
+
+    /// Decodes a data package's payload into `out`, which is left alone unless it matches.
+    fn decode_data(
+        recipe: &OutputRecipe,
+        payload: &[u8],
+        out: &mut DataPackage,
+    ) -> Result<(), RtdeMalformed> {
+        let (&id, fields) = payload.split_first().ok_or(RtdeMalformed::EmptyData)?;
+        if id != recipe.id {
+            return Err(RtdeMalformed::WrongRecipe {
+                got: id,
+                expected: recipe.id,
+            });
+        }
+        wire::decode_fields(&recipe.types, fields, &mut out.values).map_err(|source| {
+            RtdeMalformed::DataMismatch {
+                recipe_id: recipe.id,
+                source,
+            }
+        })
+    }
+
+    /// Counts and records a dropped package. Logged for the 1st, 2nd, 4th, 8th ... one, so
+    /// that a controller sending garbage cannot flood the log.
+    fn note_malformed(
+        addr: SocketAddr,
+        count: &mut u64,
+        last: &mut Option<RtdeMalformed>,
+        m: RtdeMalformed,
+    ) {
+        *count += 1;
+        *last = Some(m);
+        if count.is_power_of_two() {
+            log::warn!("RTDE from {addr}: dropped a malformed package ({m}); {count} so far");
         }
     }
 
-    fn log_text(payload: &[u8]) {
-        match TextMessage::decode(payload) {
-            Ok(m) => {
-                let level = match m.level {
-                    TextLevel::Exception | TextLevel::Error => log::Level::Error,
-                    TextLevel::Warning => log::Level::Warn,
-                    TextLevel::Info => log::Level::Info,
-                };
-                log::log!(level, "controller [{}]: {}", m.source, m.message);
+    /// Frames the next package in the receive buffer and consumes it: returns its type byte
+    /// and payload range (valid until the next read into the buffer), or `None` when more
+    /// bytes are needed. A size field below the header is dropped up to the next plausible
+    /// header, counted, and framing goes on, so a corrupt stretch never blocks later packages.
+    fn next_package(&mut self) -> Option<(u8, usize, usize)> {
+        loop {
+            let buf = &self.rx[self.rx_start..self.rx_end];
+            match wire::split_package(buf) {
+                Ok(None) => return None,
+                Ok(Some((pkg, used))) => {
+                    let start = self.rx_start;
+                    self.rx_start += used;
+                    return Some((pkg.type_byte, start + HEADER_LEN, start + used));
+                }
+                Err(e) => {
+                    let size = match e {
+                        FrameError::SizeBelowHeader { size } => size,
+                        _ => u16::from_be_bytes([buf[0], buf[1]]),
+                    };
+                    let skipped = wire::resync_offset(buf).max(1);
+                    self.rx_start += skipped;
+                    Self::note_malformed(
+                        self.addr,
+                        &mut self.malformed,
+                        &mut self.last_malformed,
+                        RtdeMalformed::BadSize { size, skipped },
+                    );
+                }
             }
-            Err(e) => log::warn!("RTDE: undecodable text message: {e}"),
         }
+    }
+
+    fn log_text(payload: &[u8]) -> Result<(), RtdeMalformed> {
+        let m = TextMessage::decode(payload)
+            .map_err(|_| RtdeMalformed::BadText { len: payload.len() })?;
+        let level = match m.level {
+            TextLevel::Exception | TextLevel::Error => log::Level::Error,
+            TextLevel::Warning => log::Level::Warn,
+            TextLevel::Info => log::Level::Info,
+        };
+        log::log!(level, "controller [{}]: {}", m.source, m.message);
+        Ok(())
     }
 
     /// Sends a setup request and returns the payload of the reply of the same type.
@@ -721,17 +1025,25 @@ impl RtdeClient {
             .map_err(|source| RtdeLinkError::Io { addr, source })?;
         let deadline = Instant::now() + self.timeouts.reply;
         loop {
-            while let Some((pkg, used)) = wire::split_package(&self.rx[self.rx_start..self.rx_end])
-                .map_err(|source| RtdeLinkError::Frame { addr, source })?
-            {
-                let reply = (pkg.type_byte == ty as u8).then(|| pkg.payload.to_vec());
-                if pkg.type_byte == PackageType::TextMessage as u8 {
-                    Self::log_text(pkg.payload);
-                    self.text_messages += 1;
+            while let Some((type_byte, start, end)) = self.next_package() {
+                let payload = &self.rx[start..end];
+                if type_byte == ty as u8 {
+                    return Ok(payload.to_vec());
                 }
-                self.rx_start += used;
-                if let Some(r) = reply {
-                    return Ok(r);
+                let malformed = match PackageType::from_byte(type_byte) {
+                    Some(PackageType::TextMessage) => {
+                        self.text_messages += 1;
+                        Self::log_text(payload).err()
+                    }
+                    // Stale data packages and late replies to earlier requests.
+                    Some(_) => None,
+                    None => Some(RtdeMalformed::UnknownType {
+                        type_byte,
+                        len: payload.len(),
+                    }),
+                };
+                if let Some(m) = malformed {
+                    Self::note_malformed(addr, &mut self.malformed, &mut self.last_malformed, m);
                 }
             }
             self.fill(deadline, self.timeouts.reply, what)?;

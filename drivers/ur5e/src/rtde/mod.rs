@@ -5,6 +5,7 @@ pub mod wire;
 
 pub use client::{
     DataPackage, InputRecipe, OutputRecipe, RTDE_PORT, RtdeClient, RtdeConnectError, RtdeLinkError,
-    RtdeReceiveError, RtdeRequestError, RtdeSendError, RtdeSetupError, RtdeState, RtdeTimeouts,
+    RtdeMalformed, RtdeReceiveError, RtdeReconnectCause, RtdeReconnectError, RtdeReconnectPolicy,
+    RtdeRequestError, RtdeSendError, RtdeSetupError, RtdeState, RtdeTimeouts,
 };
 pub use wire::{ControllerVersion, PackageType, RtdeType, RtdeValue, TextLevel, TextMessage};

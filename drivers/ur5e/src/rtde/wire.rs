@@ -107,6 +107,31 @@ pub fn split_package(buf: &[u8]) -> Result<Option<(RawPackage<'_>, usize)>, Fram
     )))
 }
 
+/// Bytes to drop from the start of `buf` after a framing error so that it starts at the next
+/// plausible package header (size field of at least 3 and a type letter RTDE defines), or,
+/// when none is buffered yet, so that only a possible header start (the last 2 bytes) remains.
+///
+/// TCP keeps no package boundaries, so once a size field is wrong the boundary is a guess:
+/// a payload byte pair that looks like a header is taken for one, and whatever that frames is
+/// then judged (unknown type, data that does not match the recipe) and dropped in turn until
+/// the stream is back on real headers. Always at least 1 for a non-empty `buf`, so a caller
+/// that drops this many bytes makes progress.
+pub fn resync_offset(buf: &[u8]) -> usize {
+    if buf.is_empty() {
+        return 0;
+    }
+    (1..buf.len())
+        .find(|&i| match buf.get(i..i + HEADER_LEN) {
+            Some(h) => {
+                u16::from_be_bytes([h[0], h[1]]) as usize >= HEADER_LEN
+                    && PackageType::from_byte(h[2]).is_some()
+            }
+            // Too few bytes left to judge: keep them, more may complete a header.
+            None => true,
+        })
+        .unwrap_or(buf.len())
+}
+
 /// Appends a header for a package of `payload_len` bytes, then the caller appends the payload.
 pub fn push_header(
     out: &mut Vec<u8>,
@@ -425,8 +450,31 @@ impl RtdeValue {
     }
 }
 
+/// Checks that `bytes` hold exactly the fields of `types`, without decoding them.
+pub fn check_fields_len(types: &[RtdeType], bytes: &[u8]) -> Result<(), ValueDecodeError> {
+    let mut available = bytes.len();
+    for (index, &ty) in types.iter().enumerate() {
+        let needed = ty.wire_len();
+        if available < needed {
+            return Err(ValueDecodeError::Truncated {
+                index,
+                ty,
+                needed,
+                available,
+            });
+        }
+        available -= needed;
+    }
+    if available != 0 {
+        return Err(ValueDecodeError::TrailingBytes { extra: available });
+    }
+    Ok(())
+}
+
 /// Decodes the fields of a data package (after the recipe id byte) by the recipe's types,
-/// writing into `out` (which must have `types.len()` slots; no allocation).
+/// writing into `out` (which must have `types.len()` slots; no allocation). The length is
+/// checked first, so on an error `out` is left as it was (a receiver keeps its last good
+/// values rather than a mix of two packages).
 pub fn decode_fields(
     types: &[RtdeType],
     mut bytes: &[u8],
@@ -438,21 +486,11 @@ pub fn decode_fields(
             given: out.len(),
         });
     }
-    for (index, (&ty, slot)) in types.iter().zip(out.iter_mut()).enumerate() {
-        let needed = ty.wire_len();
-        if bytes.len() < needed {
-            return Err(ValueDecodeError::Truncated {
-                index,
-                ty,
-                needed,
-                available: bytes.len(),
-            });
-        }
-        *slot = RtdeValue::decode_exact(ty, &bytes[..needed]);
-        bytes = &bytes[needed..];
-    }
-    if !bytes.is_empty() {
-        return Err(ValueDecodeError::TrailingBytes { extra: bytes.len() });
+    check_fields_len(types, bytes)?;
+    for (&ty, slot) in types.iter().zip(out.iter_mut()) {
+        let (field, rest) = bytes.split_at(ty.wire_len());
+        *slot = RtdeValue::decode_exact(ty, field);
+        bytes = rest;
     }
     Ok(())
 }
@@ -670,6 +708,33 @@ mod tests {
     }
 
     #[test]
+    fn a_failed_decode_leaves_the_previous_values() {
+        let types = [RtdeType::Double, RtdeType::Int32];
+        let mut out = [RtdeValue::Double(7.0), RtdeValue::Int32(7)];
+        // The first field is whole, the second is cut: nothing may be written.
+        let mut bytes = 1.5f64.to_be_bytes().to_vec();
+        bytes.extend_from_slice(&[0, 0]);
+        assert!(matches!(
+            decode_fields(&types, &bytes, &mut out),
+            Err(ValueDecodeError::Truncated { index: 1, .. })
+        ));
+        assert_eq!(out, [RtdeValue::Double(7.0), RtdeValue::Int32(7)]);
+    }
+
+    #[test]
+    fn resync_skips_to_the_next_plausible_header() {
+        let mut good = Vec::new();
+        push_package(&mut good, PackageType::DataPackage, &[1, 2, 3]).unwrap();
+        // Garbage whose pairs do not look like a header, then a real package.
+        let buf = [&[0x00, 0x01, 0xAA][..], &good].concat();
+        assert_eq!(resync_offset(&buf), 3);
+        // No header in sight: keep only the last 2 bytes, which may start one.
+        assert_eq!(resync_offset(&[0x00, 0x01, 0xAA, 0xBB, 0xCC]), 3);
+        assert_eq!(resync_offset(&[0x00]), 1);
+        assert_eq!(resync_offset(&[]), 0);
+    }
+
+    #[test]
     fn every_type_round_trips_and_has_its_documented_size() {
         let sizes = [1, 1, 4, 8, 4, 8, 24, 48, 24, 24];
         for (ty, size) in RtdeType::ALL.into_iter().zip(sizes) {
@@ -778,6 +843,8 @@ mod properties {
         #[test]
         fn decoders_never_panic_on_arbitrary_bytes(bytes in proptest::collection::vec(any::<u8>(), 0..300)) {
             let _ = split_package(&bytes);
+            let skip = resync_offset(&bytes);
+            prop_assert!(skip <= bytes.len() && (bytes.is_empty() || skip >= 1));
             let _ = TextMessage::decode(&bytes);
             let _ = ControllerVersion::decode(&bytes);
             let types = [RtdeType::Double, RtdeType::Vector6d, RtdeType::Int32, RtdeType::Bool];
