@@ -2,17 +2,23 @@
 //!
 //! Replies are checked against the exact strings of PolyScope 5 (reference §4); anything
 //! else is a [`DashboardError::UnexpectedReply`] naming the command and the reply.
+//!
+//! Each reply has one deadline (the client's timeout from when the command was sent), however
+//! the server spreads its bytes. The protocol has no sequence numbers or echo, so a reply that
+//! misses its deadline could not be told from the next command's answer: after a timeout (or
+//! an over-long line) the client drops that connection and sends its next command on a fresh
+//! one (welcome line checked again), so a late reply is never read at all.
 
-use std::io::{self, BufRead, BufReader, Read, Write};
-use std::net::{SocketAddr, TcpStream, ToSocketAddrs};
+use std::io;
+use std::net::{SocketAddr, ToSocketAddrs};
 use std::time::Duration;
 
 use thiserror::Error;
 
+use crate::line_link::{LineError, LineLink, MAX_LINE_LEN};
+
 /// Default dashboard port.
 pub const DASHBOARD_PORT: u16 = 29999;
-/// Longest reply line accepted (bytes).
-const MAX_LINE_LEN: u64 = 4096;
 /// The welcome line the server sends on connect.
 pub const WELCOME: &str = "Connected: Universal Robots Dashboard Server";
 
@@ -37,7 +43,8 @@ pub enum DashboardError {
         /// Server address.
         addr: SocketAddr,
     },
-    /// No reply line in time.
+    /// No whole reply line within the timeout from sending the command (the next command goes
+    /// on a fresh connection).
     #[error("dashboard {addr}: no reply to {command:?} within {timeout:?}")]
     Timeout {
         /// Server address.
@@ -54,6 +61,14 @@ pub enum DashboardError {
         command: String,
         /// The reply line.
         reply: String,
+    },
+    /// A reply line longer than 4096 bytes (the next command goes on a fresh connection).
+    #[error("dashboard {addr}: reply to {command:?} longer than {MAX_LINE_LEN} bytes")]
+    LineTooLong {
+        /// Server address.
+        addr: SocketAddr,
+        /// The command.
+        command: String,
     },
     /// The command text would break the line protocol.
     #[error("dashboard command {command:?} contains a line break")]
@@ -219,14 +234,11 @@ pub enum ProgramState {
     Paused(String),
 }
 
-/// A dashboard connection.
+/// A dashboard connection (reconnected after a timeout, see the module docs).
 #[derive(Debug)]
 pub struct DashboardClient {
     addr: SocketAddr,
-    reader: BufReader<TcpStream>,
-    writer: TcpStream,
-    timeout: Duration,
-    line: String,
+    link: LineLink,
 }
 
 impl DashboardClient {
@@ -239,54 +251,50 @@ impl DashboardClient {
             .ok_or_else(|| {
                 DashboardError::Resolve(io::Error::new(io::ErrorKind::NotFound, "no address"))
             })?;
-        let io_err = |source| DashboardError::Io { addr, source };
-        let stream = TcpStream::connect_timeout(&addr, timeout).map_err(io_err)?;
-        stream.set_nodelay(true).map_err(io_err)?;
-        stream.set_read_timeout(Some(timeout)).map_err(io_err)?;
-        stream.set_write_timeout(Some(timeout)).map_err(io_err)?;
-        let writer = stream.try_clone().map_err(io_err)?;
-        let mut client = Self {
-            addr,
-            reader: BufReader::new(stream),
-            writer,
-            timeout,
-            line: String::new(),
-        };
-        let welcome = client.read_line("<welcome>")?;
+        let link = LineLink::connect(addr, timeout)
+            .map_err(|source| DashboardError::Io { addr, source })?;
+        let mut client = Self { addr, link };
+        client.check_welcome()?;
+        Ok(client)
+    }
+
+    fn check_welcome(&mut self) -> Result<(), DashboardError> {
+        let welcome = self.read_line("<welcome>")?;
         if welcome != WELCOME {
             return Err(DashboardError::UnexpectedReply {
                 command: "<welcome>".into(),
                 reply: welcome,
             });
         }
-        Ok(client)
+        Ok(())
+    }
+
+    /// A fresh connection after a timeout, so the late reply on the old one is never read.
+    fn resync(&mut self) -> Result<(), DashboardError> {
+        let addr = self.addr;
+        self.link
+            .reopen()
+            .map_err(|source| DashboardError::Io { addr, source })?;
+        log::info!("dashboard {addr}: reconnected after a reply timeout");
+        self.check_welcome()
     }
 
     fn read_line(&mut self, command: &str) -> Result<String, DashboardError> {
-        self.line.clear();
-        // Bounded: a misbehaving server cannot make us buffer without end.
-        match (&mut self.reader)
-            .take(MAX_LINE_LEN)
-            .read_line(&mut self.line)
-        {
-            Ok(0) => Err(DashboardError::Closed { addr: self.addr }),
-            Ok(_) => Ok(self.line.trim_end_matches(['\n', '\r']).to_string()),
-            Err(e)
-                if matches!(
-                    e.kind(),
-                    io::ErrorKind::WouldBlock | io::ErrorKind::TimedOut
-                ) =>
-            {
-                Err(DashboardError::Timeout {
-                    addr: self.addr,
-                    command: command.into(),
-                    timeout: self.timeout,
-                })
-            }
-            Err(source) => Err(DashboardError::Io {
-                addr: self.addr,
-                source,
+        let addr = self.addr;
+        let timeout = self.link.timeout();
+        match self.link.read_line() {
+            Ok(line) => Ok(line.trim_end_matches('\r').to_string()),
+            Err(LineError::Closed) => Err(DashboardError::Closed { addr }),
+            Err(LineError::Timeout) => Err(DashboardError::Timeout {
+                addr,
+                command: command.into(),
+                timeout,
             }),
+            Err(LineError::TooLong) => Err(DashboardError::LineTooLong {
+                addr,
+                command: command.into(),
+            }),
+            Err(LineError::Io(source)) => Err(DashboardError::Io { addr, source }),
         }
     }
 
@@ -297,12 +305,15 @@ impl DashboardClient {
                 command: command.into(),
             });
         }
+        if self.link.is_stale() {
+            self.resync()?;
+        }
         let addr = self.addr;
         let mut line = String::with_capacity(command.len() + 1);
         line.push_str(command);
         line.push('\n');
-        self.writer
-            .write_all(line.as_bytes())
+        self.link
+            .send(line.as_bytes())
             .map_err(|source| DashboardError::Io { addr, source })?;
         self.read_line(command)
     }

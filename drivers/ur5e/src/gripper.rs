@@ -10,12 +10,20 @@
 //! current position 0 = open .. 255 = closed), SPE and FOR (0..255), STA (0 reset,
 //! 1 activating, 3 active), OBJ (0 moving, 1 contact while opening, 2 contact while closing,
 //! 3 at the requested position), FLT (fault code, 0 = none), PRE (echo of the request).
+//!
+//! Each reply has one deadline (the client's timeout from when the request was sent), however
+//! the URCap spreads its bytes. `ack` answers every `SET` and nothing numbers the requests, so
+//! a reply that misses its deadline could not be told from the next request's answer: after a
+//! timeout (or an over-long line) the client drops that connection and sends its next request
+//! on a fresh one, so a late reply is never read at all.
 
-use std::io::{self, BufRead, BufReader, Read, Write};
-use std::net::{SocketAddr, TcpStream, ToSocketAddrs};
+use std::io::{self, Write};
+use std::net::{SocketAddr, ToSocketAddrs};
 use std::time::{Duration, Instant};
 
 use thiserror::Error;
+
+use crate::line_link::{LineError, LineLink, MAX_LINE_LEN};
 
 /// Default URCap gripper port.
 pub const GRIPPER_PORT: u16 = 63352;
@@ -43,9 +51,18 @@ pub enum GripperError {
         /// Address.
         addr: SocketAddr,
     },
-    /// No reply in time.
+    /// No whole reply line within the timeout from sending the request (the next request goes
+    /// on a fresh connection).
     #[error("gripper {addr}: no reply to {command:?}")]
     Timeout {
+        /// Address.
+        addr: SocketAddr,
+        /// The command.
+        command: String,
+    },
+    /// A reply line longer than 4096 bytes (the next request goes on a fresh connection).
+    #[error("gripper {addr}: reply to {command:?} longer than {MAX_LINE_LEN} bytes")]
+    LineTooLong {
         /// Address.
         addr: SocketAddr,
         /// The command.
@@ -106,13 +123,11 @@ impl GripperStatus {
     }
 }
 
-/// A Robotiq URCap socket connection.
+/// A Robotiq URCap socket connection (reconnected after a timeout, see the module docs).
 #[derive(Debug)]
 pub struct RobotiqGripper {
     addr: SocketAddr,
-    reader: BufReader<TcpStream>,
-    writer: TcpStream,
-    line: String,
+    link: LineLink,
     poll_period: Duration,
 }
 
@@ -126,17 +141,11 @@ impl RobotiqGripper {
             .ok_or_else(|| {
                 GripperError::Resolve(io::Error::new(io::ErrorKind::NotFound, "no address"))
             })?;
-        let io_err = |source| GripperError::Io { addr, source };
-        let stream = TcpStream::connect_timeout(&addr, timeout).map_err(io_err)?;
-        stream.set_nodelay(true).map_err(io_err)?;
-        stream.set_read_timeout(Some(timeout)).map_err(io_err)?;
-        stream.set_write_timeout(Some(timeout)).map_err(io_err)?;
-        let writer = stream.try_clone().map_err(io_err)?;
+        let link =
+            LineLink::connect(addr, timeout).map_err(|source| GripperError::Io { addr, source })?;
         Ok(Self {
             addr,
-            reader: BufReader::new(stream),
-            writer,
-            line: String::new(),
+            link,
             poll_period: Duration::from_millis(10),
         })
     }
@@ -154,25 +163,28 @@ impl RobotiqGripper {
             // At most 128: the cursor's buffer length.
             cursor.position() as usize
         };
-        self.writer
-            .write_all(&line[..len])
+        if self.link.is_stale() {
+            // A fresh connection, so the late reply on the old one is never read.
+            self.link
+                .reopen()
+                .map_err(|source| GripperError::Io { addr, source })?;
+            log::info!("gripper {addr}: reconnected after a reply timeout");
+        }
+        self.link
+            .send(&line[..len])
             .map_err(|source| GripperError::Io { addr, source })?;
-        self.line.clear();
-        match (&mut self.reader).take(4096).read_line(&mut self.line) {
-            Ok(0) => Err(GripperError::Closed { addr }),
-            Ok(_) => Ok(self.line.trim()),
-            Err(e)
-                if matches!(
-                    e.kind(),
-                    io::ErrorKind::WouldBlock | io::ErrorKind::TimedOut
-                ) =>
-            {
-                Err(GripperError::Timeout {
-                    addr,
-                    command: command.to_string(),
-                })
-            }
-            Err(source) => Err(GripperError::Io { addr, source }),
+        match self.link.read_line() {
+            Ok(reply) => Ok(reply.trim()),
+            Err(LineError::Closed) => Err(GripperError::Closed { addr }),
+            Err(LineError::Timeout) => Err(GripperError::Timeout {
+                addr,
+                command: command.to_string(),
+            }),
+            Err(LineError::TooLong) => Err(GripperError::LineTooLong {
+                addr,
+                command: command.to_string(),
+            }),
+            Err(LineError::Io(source)) => Err(GripperError::Io { addr, source }),
         }
     }
 

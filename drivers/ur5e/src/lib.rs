@@ -23,6 +23,7 @@
 pub mod arm;
 pub mod dashboard;
 pub mod gripper;
+mod line_link;
 pub mod pose;
 pub mod rtde;
 pub mod script;
