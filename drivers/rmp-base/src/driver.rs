@@ -103,6 +103,14 @@ pub struct RmpBaseConfig {
     /// Velocity limit used to normalise commands until the base reports its own, m/s
     /// (factory NVM: 2.2352).
     pub fallback_velocity_limit_mps: f32,
+    /// A measured speed (feedback item `LinearVelocity`) more than this above the speed
+    /// commanded (an envelope that falls no faster than `limits.max_decel_mps2`, so the base
+    /// may lag a slowing command) stops and disarms the driver: [`BaseError::Overspeed`].
+    /// 0.15 m/s.
+    pub overspeed_tolerance_mps: f32,
+    /// The same for the measured yaw rate (`DifferentialWheelVelocity`), against an envelope
+    /// that falls at `limits.max_yaw_accel_radps2`. 0.3 rad/s.
+    pub overspeed_tolerance_radps: f32,
     /// Yaw-rate limit used to normalise until the base reports its own, rad/s (factory: 3.0).
     pub fallback_yaw_rate_limit_radps: f32,
     /// Track width for heading from wheel positions until the base reports its own, m.
@@ -123,6 +131,8 @@ impl Default for RmpBaseConfig {
             assume_feedback_configured: false,
             yaw_sign: 1.0,
             fallback_velocity_limit_mps: NvmFloat::MaxVelocityMps.default_value(),
+            overspeed_tolerance_mps: 0.15,
+            overspeed_tolerance_radps: 0.3,
             fallback_yaw_rate_limit_radps: NvmFloat::MaxTurnRateRadps.default_value(),
             fallback_track_width_m: NvmFloat::TrackWidthM.default_value() as f64,
         }
@@ -142,7 +152,8 @@ pub enum ConfigError {
     /// `yaw_sign` is not +1 or -1.
     #[error("rmp-base config: yaw_sign must be +1 or -1, got {0}")]
     YawSign(f64),
-    /// A fallback limit or track width is not a positive finite number; names the field.
+    /// A fallback limit, track width or overspeed tolerance is not a positive finite number;
+    /// names the field.
     #[error("rmp-base config: {0} must be finite and > 0")]
     Fallback(&'static str),
     /// The feedback selection lacks an item the driver needs.
@@ -189,6 +200,12 @@ impl RmpBaseConfig {
         }
         if !positive(self.fallback_track_width_m) {
             return Err(ConfigError::Fallback("fallback_track_width_m"));
+        }
+        if !positive(self.overspeed_tolerance_mps as f64) {
+            return Err(ConfigError::Fallback("overspeed_tolerance_mps"));
+        }
+        if !positive(self.overspeed_tolerance_radps as f64) {
+            return Err(ConfigError::Fallback("overspeed_tolerance_radps"));
         }
         for item in [
             FeedbackItem::OperationalState,
@@ -277,9 +294,50 @@ pub enum BaseError {
         /// Fault status words 1..4.
         faults: FaultStatus,
     },
+    /// The base moved faster than commanded (beyond the configured tolerance): the driver
+    /// commands zero and stays disarmed until [`RmpBase::rearm`]. Re-reported every tick
+    /// until then.
+    #[error(
+        "RMP base faster than commanded: {measured_mps} m/s (allowed {allowed_mps}), {measured_yaw_radps} rad/s (allowed {allowed_yaw_radps}); stopped until re-armed"
+    )]
+    Overspeed {
+        /// Measured speed, m/s.
+        measured_mps: f32,
+        /// Commanded envelope plus tolerance, m/s.
+        allowed_mps: f32,
+        /// Measured yaw rate, rad/s.
+        measured_yaw_radps: f32,
+        /// Commanded yaw envelope plus tolerance, rad/s.
+        allowed_yaw_radps: f32,
+    },
     /// The link refused a frame.
     #[error("RMP link: {0}")]
     Link(#[from] LinkError),
+}
+
+/// Why the driver disarmed itself. Disarmed, it commands zero velocity whatever the input,
+/// until [`RmpBase::rearm`] is called, even after the cause has cleared.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[non_exhaustive]
+pub enum DisarmCause {
+    /// The base stopped answering (or its feedback became unreadable) after it had answered.
+    LinkLost,
+    /// The base reported a fault that stops motion.
+    Faulted {
+        /// Fault status words 1..4 when it was seen.
+        faults: FaultStatus,
+    },
+    /// The base moved faster than commanded ([`BaseError::Overspeed`]).
+    Overspeed {
+        /// Measured speed, m/s.
+        measured_mps: f32,
+        /// Commanded envelope plus tolerance, m/s.
+        allowed_mps: f32,
+        /// Measured yaw rate, rad/s.
+        measured_yaw_radps: f32,
+        /// Commanded yaw envelope plus tolerance, rad/s.
+        allowed_yaw_radps: f32,
+    },
 }
 
 fn describe(faults: &FaultStatus) -> String {
@@ -300,9 +358,12 @@ pub struct BaseStatus {
     pub faults: FaultStatus,
     /// Minimum propulsion battery state of charge, %, if reported.
     pub battery_soc_pct: Option<f32>,
-    /// Velocity limit the base normalises with, m/s (reported or fallback).
+    /// Velocity limit the base normalises with, m/s (reported or fallback). The driver divides
+    /// its commands by the larger of this and the configured maximum speed, so a small (or
+    /// wrong) report can make commands smaller, never larger.
     pub velocity_limit_mps: f32,
-    /// Yaw-rate limit the base normalises with, rad/s (reported or fallback).
+    /// Yaw-rate limit the base normalises with, rad/s (reported or fallback); the driver
+    /// divides by the larger of this and the configured maximum yaw rate.
     pub yaw_rate_limit_radps: f32,
     /// Clock time of the last complete feedback set.
     pub last_feedback: Option<Duration>,
@@ -325,6 +386,8 @@ pub struct Tick {
     pub feedback_sets: u32,
     /// A mode request was confirmed this tick.
     pub mode_reached: Option<BaseMode>,
+    /// False while the driver is disarmed ([`RmpBase::disarmed`]): it commands zero.
+    pub armed: bool,
 }
 
 /// Start-up: write the feedback bitmaps one per tick, read them back through the forced
@@ -363,6 +426,11 @@ pub struct RmpBase<L> {
     status: BaseStatus,
     track_width_m: f64,
     odometry: DeadReckoning,
+    disarmed: Option<DisarmCause>,
+    /// What the base may be doing on the commands sent so far: |commanded|, falling no faster
+    /// than the limiter's deceleration (speed, yaw rate).
+    envelope: (f32, f32),
+    low_limit_warned: bool,
 }
 
 fn us(d: Duration) -> u64 {
@@ -407,6 +475,9 @@ impl<L: RmpLink> RmpBase<L> {
             },
             track_width_m: config.fallback_track_width_m,
             odometry: DeadReckoning::default(),
+            disarmed: None,
+            envelope: (0.0, 0.0),
+            low_limit_warned: false,
             config,
         })
     }
@@ -423,6 +494,50 @@ impl<L: RmpLink> RmpBase<L> {
     pub fn request_mode(&mut self, mode: BaseMode, now: Duration) {
         self.mode_target = Some(mode);
         self.modes.request(mode.reported_as(), us(now));
+    }
+
+    /// Why the driver is disarmed, if it is. A new driver is armed (constructing it and asking
+    /// for tractor is the operator's intent); a lost link (silence or unreadable feedback
+    /// after the base had answered), a stopping fault or an overspeed disarms it, and it then
+    /// commands zero until [`Self::rearm`].
+    pub fn disarmed(&self) -> Option<DisarmCause> {
+        self.disarmed
+    }
+
+    /// Re-arms after a lost link, a fault or an overspeed: the explicit acknowledgement
+    /// without which motion does not resume. Returns the cause that is cleared. Call it when
+    /// the cause is gone and the base is at rest (e.g. when a mission starts); if the cause
+    /// persists, the next tick disarms again. Velocity ramps up from zero afterwards.
+    pub fn rearm(&mut self) -> Option<DisarmCause> {
+        let cause = self.disarmed.take();
+        if let Some(c) = cause {
+            info!("RMP driver re-armed (was disarmed: {c:?})");
+        }
+        self.envelope = (0.0, 0.0);
+        self.limiter.reset_to(Twist::ZERO);
+        cause
+    }
+
+    fn disarm(&mut self, cause: DisarmCause) {
+        if self.disarmed.is_none() {
+            warn!("RMP driver disarmed: {cause:?}; commanding zero until re-armed");
+            self.disarmed = Some(cause);
+        }
+    }
+
+    /// The measured velocity against the commanded envelope; `Some` when it is above.
+    fn overspeed(&self) -> Option<DisarmCause> {
+        let o = &self.odometry.odometry;
+        let (measured_mps, measured_yaw_radps) = (o.speed_mps as f32, o.yaw_rate_radps as f32);
+        let allowed_mps = self.envelope.0 + self.config.overspeed_tolerance_mps;
+        let allowed_yaw_radps = self.envelope.1 + self.config.overspeed_tolerance_radps;
+        (measured_mps.abs() > allowed_mps || measured_yaw_radps.abs() > allowed_yaw_radps)
+            .then_some(DisarmCause::Overspeed {
+                measured_mps,
+                allowed_mps,
+                measured_yaw_radps,
+                allowed_yaw_radps,
+            })
     }
 
     /// The base's status as last reported.
@@ -563,11 +678,24 @@ impl<L: RmpLink> RmpBase<L> {
             && unread_for > self.config.response_timeout;
         let silent = base_silent || unreadable;
 
-        // Decide the velocity: zero unless the input is fresh, the base answers, drives, and
-        // reports no stopping fault.
+        // Decide the velocity: zero unless the driver is armed, the input is fresh, the base
+        // answers, drives, and reports no stopping fault.
         let input_stale = self.input_watchdog.is_stale(us(now));
         let faulted = self.status.faults.stops_motion();
-        let may_drive = !silent && !faulted && self.is_driving();
+        if faulted {
+            self.disarm(DisarmCause::Faulted {
+                faults: self.status.faults,
+            });
+        } else if silent && self.status.feedback_sets > 0 {
+            self.disarm(DisarmCause::LinkLost);
+        } else if self.disarmed.is_none() && feedback_sets > 0 && !silent && self.is_driving() {
+            // This tick's feedback against what was commanded before it.
+            if let Some(cause) = self.overspeed() {
+                self.disarm(cause);
+            }
+        }
+        let armed = self.disarmed.is_none();
+        let may_drive = armed && !silent && !faulted && self.is_driving();
         let wanted = if input_stale || !may_drive {
             Twist::ZERO
         } else {
@@ -582,13 +710,36 @@ impl<L: RmpLink> RmpBase<L> {
             self.limiter.reset_to(Twist::ZERO);
         }
         let commanded = self.limiter.step(wanted, dt.as_secs_f32());
+        let dt_s = dt.as_secs_f32();
+        let limits = &self.config.limits;
+        self.envelope = (
+            commanded
+                .speed_mps
+                .abs()
+                .max(self.envelope.0 - limits.max_decel_mps2 * dt_s),
+            commanded
+                .yaw_rate_radps
+                .abs()
+                .max(self.envelope.1 - limits.max_yaw_accel_radps2 * dt_s),
+        );
 
         if !sent_config {
-            // The motion frame is also the keep-alive and the prompt for feedback.
-            let v = (commanded.speed_mps / self.status.velocity_limit_mps).clamp(-1.0, 1.0);
-            let w = (self.config.yaw_sign as f32 * commanded.yaw_rate_radps
-                / self.status.yaw_rate_limit_radps)
-                .clamp(-1.0, 1.0);
+            // The motion frame is also the keep-alive and the prompt for feedback. The base
+            // multiplies it by its own limit: dividing by a reported limit below the configured
+            // maximum would ask the base for more than the robot file allows if the report were
+            // wrong, so the divisor is at least the configured maximum.
+            let v_scale = self
+                .status
+                .velocity_limit_mps
+                .max(limits.max_forward_mps)
+                .max(limits.max_reverse_mps);
+            let w_scale = self
+                .status
+                .yaw_rate_limit_radps
+                .max(limits.max_yaw_rate_radps);
+            let v = (commanded.speed_mps / v_scale).clamp(-1.0, 1.0);
+            let w =
+                (self.config.yaw_sign as f32 * commanded.yaw_rate_radps / w_scale).clamp(-1.0, 1.0);
             let motion = MotionCommand::new(v, w).unwrap_or(MotionCommand::ZERO);
             self.link.send(&motion.encode())?;
         }
@@ -614,11 +765,26 @@ impl<L: RmpLink> RmpBase<L> {
                 faults: self.status.faults,
             });
         }
+        if let Some(DisarmCause::Overspeed {
+            measured_mps,
+            allowed_mps,
+            measured_yaw_radps,
+            allowed_yaw_radps,
+        }) = self.disarmed
+        {
+            return Err(BaseError::Overspeed {
+                measured_mps,
+                allowed_mps,
+                measured_yaw_radps,
+                allowed_yaw_radps,
+            });
+        }
         Ok(Tick {
             commanded,
             input_stale,
             feedback_sets,
             mode_reached,
+            armed,
         })
     }
 
@@ -711,6 +877,17 @@ impl<L: RmpLink> RmpBase<L> {
         }
         let positive = |v: Option<f32>| v.filter(|x| x.is_finite() && *x > 0.0);
         if let Some(v) = positive(set.get_f32(FeedbackItem::VelocityLimit)) {
+            let configured = self
+                .config
+                .limits
+                .max_forward_mps
+                .max(self.config.limits.max_reverse_mps);
+            if v < configured && !self.low_limit_warned {
+                self.low_limit_warned = true;
+                warn!(
+                    "RMP base reports a velocity limit of {v} m/s, below the configured {configured} m/s: commands are not scaled up to it, so the base drives slower than commanded"
+                );
+            }
             s.velocity_limit_mps = v;
         }
         if let Some(w) = positive(set.get_f32(FeedbackItem::YawRateLimit)) {

@@ -33,8 +33,8 @@ mod link;
 mod odometry;
 
 pub use driver::{
-    BaseError, BaseMode, BaseStatus, ConfigError, DRIVER_FEEDBACK_ITEMS, RmpBase, RmpBaseConfig,
-    Tick,
+    BaseError, BaseMode, BaseStatus, ConfigError, DRIVER_FEEDBACK_ITEMS, DisarmCause, RmpBase,
+    RmpBaseConfig, Tick,
 };
 pub use link::{CanLink, LinkError, RmpLink, from_can, to_can};
 pub use odometry::Odometry;

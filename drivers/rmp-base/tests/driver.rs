@@ -6,7 +6,9 @@ use std::time::Duration;
 
 use can_bus::{CanBus, MemoryBus, MemoryBusNode};
 use motion_control::Twist;
-use rmp_base::{BaseError, BaseMode, CanLink, RmpBase, RmpBaseConfig, from_can, to_can};
+use rmp_base::{
+    BaseError, BaseMode, CanLink, DisarmCause, RmpBase, RmpBaseConfig, from_can, to_can,
+};
 use rmp_codec::faults::{self, FaultStatus};
 use rmp_codec::feedback::{FeedbackBitmaps, FeedbackItem, FeedbackLayout, FeedbackSet};
 use rmp_codec::v3::{ConfigCommand, FirmwareProfile, HostCommand, ModeRequest, OperationalState};
@@ -20,6 +22,9 @@ struct ScriptedBase {
     accepts_tractor: bool,
     faults: FaultStatus,
     velocity_limit_mps: f32,
+    /// Reported linear velocity; `None`: what the last motion command asks for (normalised
+    /// velocity times the reported limit), as a base that follows its commands.
+    speed_override_mps: Option<f32>,
     answering: bool,
     layout: FeedbackLayout,
     /// Applies feedback-bitmap writes to `layout` (a real base does).
@@ -39,6 +44,7 @@ impl ScriptedBase {
             accepts_tractor: true,
             faults: FaultStatus::CLEAR,
             velocity_limit_mps: 2.0,
+            speed_override_mps: None,
             answering: true,
             layout: FeedbackLayout::default(),
             obeys_bitmaps: true,
@@ -86,6 +92,9 @@ impl ScriptedBase {
             } else {
                 self.layout
             };
+            let speed_mps = self.speed_override_mps.unwrap_or_else(|| {
+                self.motions.last().map_or(0.0, |m| m.0) * self.velocity_limit_mps
+            });
             let set = FeedbackSet::from_fn(layout, |item| match item {
                 FeedbackItem::UserFeedbackBitmap1 => bitmaps.words()[0],
                 FeedbackItem::UserFeedbackBitmap2 => bitmaps.words()[1],
@@ -95,6 +104,7 @@ impl ScriptedBase {
                 FeedbackItem::FaultStatusWord1 => self.faults.words()[0],
                 FeedbackItem::VelocityLimit => self.velocity_limit_mps.to_bits(),
                 FeedbackItem::YawRateLimit => 2.0f32.to_bits(),
+                FeedbackItem::LinearVelocity => speed_mps.to_bits(),
                 _ => 0,
             });
             for f in set.frames() {
@@ -252,11 +262,123 @@ fn a_silent_base_is_an_error_and_gets_zero_commands() {
     assert!(error_at - silent_since <= Duration::from_millis(300));
     // Fresh inputs notwithstanding, the driver now sends zero.
     assert_eq!(rig.base.motions.last(), Some(&(0.0, 0.0)));
-    // When the base answers again the driver recovers.
+    // When the base answers again the driver reports no error, but the link was lost: it
+    // stays disarmed, commanding zero, until it is re-armed.
     rig.base.answering = true;
     rig.tick().ok();
-    rig.driver.set_velocity(Twist::new(0.4, 0.0), rig.now);
-    assert!(rig.tick().is_ok());
+    assert_eq!(rig.driver.disarmed(), Some(DisarmCause::LinkLost));
+    for _ in 0..10 {
+        rig.driver.set_velocity(Twist::new(0.4, 0.0), rig.now);
+        let tick = rig.tick().unwrap();
+        assert!(!tick.armed);
+        assert_eq!(tick.commanded, Twist::ZERO);
+    }
+    assert_eq!(rig.base.motions.last(), Some(&(0.0, 0.0)));
+    assert_eq!(rig.driver.rearm(), Some(DisarmCause::LinkLost));
+    for _ in 0..10 {
+        rig.driver.set_velocity(Twist::new(0.4, 0.0), rig.now);
+        assert!(rig.tick().unwrap().armed);
+    }
+    assert!(
+        rig.base.motions.last().unwrap().0 > 0.0,
+        "moves again after the re-arm"
+    );
+}
+
+#[test]
+fn a_small_reported_limit_never_scales_a_command_up() {
+    let mut rig = Rig::new(RmpBaseConfig::default());
+    // The base claims 0.05 m/s: normalising 0.2 m/s by it would ask for 4x its limit, i.e.
+    // full speed, whatever the base's real limit is.
+    rig.base.velocity_limit_mps = 0.05;
+    rig.enter_tractor();
+    for _ in 0..60 {
+        rig.driver.set_velocity(Twist::new(0.2, 0.0), rig.now);
+        rig.tick().unwrap();
+    }
+    // Divided by at least the configured 0.5 m/s: never more than 0.2 / 0.5 of the base's limit.
+    let max_v = rig.base.motions.iter().map(|m| m.0).fold(0.0f32, f32::max);
+    assert!(max_v <= 0.4 + 1e-6, "normalised command {max_v}");
+    assert!((max_v - 0.4).abs() < 1e-6, "{max_v}");
+}
+
+#[test]
+fn a_base_faster_than_commanded_is_stopped_until_rearmed() {
+    let mut rig = Rig::new(RmpBaseConfig::default());
+    rig.enter_tractor();
+    for _ in 0..40 {
+        rig.driver.set_velocity(Twist::new(0.3, 0.0), rig.now);
+        rig.tick().unwrap();
+    }
+    // The base runs away: 1 m/s measured against 0.3 commanded.
+    rig.base.speed_override_mps = Some(1.0);
+    let mut tripped = None;
+    for _ in 0..5 {
+        rig.driver.set_velocity(Twist::new(0.3, 0.0), rig.now);
+        if let Err(e) = rig.tick() {
+            tripped = Some(e);
+            break;
+        }
+    }
+    match tripped {
+        Some(BaseError::Overspeed {
+            measured_mps,
+            allowed_mps,
+            ..
+        }) => {
+            assert_eq!(measured_mps, 1.0);
+            assert!(allowed_mps < 0.5, "{allowed_mps}");
+        }
+        other => panic!("{other:?}"),
+    }
+    assert!(matches!(
+        rig.driver.disarmed(),
+        Some(DisarmCause::Overspeed { .. })
+    ));
+    // Zero from the tick it tripped on, reported every tick until re-armed, even once the base
+    // behaves again.
+    assert_eq!(rig.base.motions.last(), Some(&(0.0, 0.0)));
+    rig.base.speed_override_mps = None;
+    for _ in 0..10 {
+        rig.driver.set_velocity(Twist::new(0.3, 0.0), rig.now);
+        assert!(matches!(rig.tick(), Err(BaseError::Overspeed { .. })));
+        assert_eq!(rig.base.motions.last(), Some(&(0.0, 0.0)));
+    }
+    rig.driver.rearm();
+    for _ in 0..10 {
+        rig.driver.set_velocity(Twist::new(0.3, 0.0), rig.now);
+        rig.tick().unwrap();
+    }
+    assert!(rig.base.motions.last().unwrap().0 > 0.0);
+}
+
+#[test]
+fn a_fault_disarms_until_rearmed_even_after_it_clears() {
+    let mut rig = Rig::new(RmpBaseConfig::default());
+    rig.enter_tractor();
+    rig.base.faults.set(faults::KILL_SWITCH_ACTIVE);
+    // The fault arrives with the reply to this tick's command.
+    rig.tick().unwrap();
+    for _ in 0..5 {
+        rig.driver.set_velocity(Twist::new(0.3, 0.0), rig.now);
+        assert!(matches!(rig.tick(), Err(BaseError::Faulted { .. })));
+    }
+    rig.base.faults = FaultStatus::CLEAR;
+    rig.tick().ok();
+    for _ in 0..10 {
+        rig.driver.set_velocity(Twist::new(0.3, 0.0), rig.now);
+        assert!(!rig.tick().unwrap().armed);
+    }
+    assert_eq!(rig.base.motions.last(), Some(&(0.0, 0.0)));
+    assert!(matches!(
+        rig.driver.rearm(),
+        Some(DisarmCause::Faulted { .. })
+    ));
+    for _ in 0..10 {
+        rig.driver.set_velocity(Twist::new(0.3, 0.0), rig.now);
+        rig.tick().unwrap();
+    }
+    assert!(rig.base.motions.last().unwrap().0 > 0.0);
 }
 
 #[test]

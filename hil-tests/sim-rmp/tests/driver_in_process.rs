@@ -162,7 +162,7 @@ fn an_injected_kill_switch_stops_the_base_and_the_driver_names_it() {
 }
 
 #[test]
-fn a_silenced_base_is_reported_and_recovers() {
+fn a_silenced_base_is_reported_and_recovers_after_rearm() {
     let mut rig = Rig::new(1.0);
     rig.enter_tractor();
     rig.drive(Twist::new(0.3, 0.0), Duration::from_millis(500));
@@ -177,6 +177,10 @@ fn a_silenced_base_is_reported_and_recovers() {
     assert!(silent_errors >= 15, "{silent_errors}");
     rig.sim.sim_mut().set_silent(false);
     rig.step().ok();
+    // The link came back, but motion resumes only after an explicit re-arm.
+    rig.drive(Twist::new(0.3, 0.0), Duration::from_millis(500));
+    assert_eq!(rig.sim.sim().velocity().0, 0.0);
+    assert_eq!(rig.driver.rearm(), Some(rmp_base::DisarmCause::LinkLost));
     rig.drive(Twist::new(0.3, 0.0), Duration::from_millis(500));
     assert!(rig.sim.sim().velocity().0 > 0.1);
 }

@@ -15,10 +15,12 @@
 //! unload it asks for a new plan for what is left: how (or whether) to retry is the planner's
 //! decision. Every step is reported on `events`.
 //!
-//! Safety (DESIGN.md): a lost base (no feedback), a base fault, a lost arm link, an arm stop, a
-//! dead planner (heartbeats missing) or a lost clock abort the mission: the base is commanded to
-//! zero (the driver ramps at its deceleration limit) and the arm is stopped. Aborted is final:
-//! motion resumes only after the executive is restarted (re-armed) by an operator. Stale
+//! Safety (DESIGN.md): a lost base (no feedback), a base fault or overspeed, a lost arm link, an
+//! arm stop, a dead planner (heartbeats missing) or a lost clock abort the mission: the base is
+//! commanded to zero (the driver ramps at its deceleration limit) and the arm is stopped. Aborted
+//! is final: motion resumes only after the executive is restarted (re-armed) by an operator. The
+//! RMP driver latches the same way on its own (a lost link, a fault or an overspeed disarm it);
+//! the executive re-arms it once, at mission start, and never after a fault. Stale
 //! localisation holds the base at zero until fixes return. If this process dies, the base's own
 //! 0.5 s loss-of-command timeout and the arm controller's RTDE watchdog stop both.
 
@@ -615,6 +617,10 @@ impl<B: CanBus, A: ArmDevice> Executive<B, A> {
                 if !self.mode_requested {
                     self.mode_requested = true;
                     self.base.request_mode(BaseMode::Tractor, now);
+                    // The one explicit re-arm of the RMP driver: at mission start. After a lost
+                    // link, a base fault or an overspeed the driver disarms itself and the
+                    // mission aborts; nothing here re-arms it again.
+                    self.base.rearm();
                 }
                 if self.base.is_driving() && self.localiser.is_initialised() {
                     self.state = MissionState::Running;
@@ -655,7 +661,9 @@ impl<B: CanBus, A: ArmDevice> Executive<B, A> {
         let tick = self.base.tick(now);
         match &tick {
             Err(BaseError::Silent { .. }) => self.abort(AbortReason::BaseLinkLost, now),
-            Err(BaseError::Faulted { .. }) => self.abort(AbortReason::BaseFault, now),
+            Err(BaseError::Faulted { .. } | BaseError::Overspeed { .. }) => {
+                self.abort(AbortReason::BaseFault, now)
+            }
             _ => {}
         }
         let odo = *self.base.odometry();
