@@ -28,6 +28,7 @@ mod error;
 mod frame;
 mod memory;
 pub mod os;
+mod peer_table;
 mod socketcan_bus;
 mod virtual_bus;
 
@@ -37,7 +38,7 @@ pub use frame::{
 };
 pub use memory::{DEFAULT_MEMORY_QUEUE_DEPTH, MemoryBus, MemoryBusNode};
 pub use socketcan_bus::{OpenError, SocketCanBus, interface_exists};
-pub use virtual_bus::{JoinError, VirtualBusConfig, VirtualCanBus};
+pub use virtual_bus::{JoinError, PEERS_PER_NODE, VirtualBusConfig, VirtualCanBus};
 
 /// A node on a CAN bus: sends frames to every other node, receives theirs.
 ///

@@ -12,10 +12,13 @@
 //!   order for frames that were already published;
 //! - a reader that falls `rx_queue_depth` frames behind one sender loses that sender's oldest
 //!   frames (safe overflow: a sender never blocks on a slow reader, as on a real bus); the
-//!   per-sender sequence number makes the loss visible in [`VirtualCanBus::lost_frame_count`].
+//!   per-sender sequence number makes the loss visible in [`VirtualCanBus::lost_frame_count`];
+//! - per-sender state is a fixed-size table ([`PEERS_PER_NODE`] x `max_nodes` senders, the least
+//!   recently heard evicted and counted in [`VirtualCanBus::evicted_peer_count`]) with wrapping
+//!   sequence arithmetic, since keys and sequence numbers come from other processes.
 
 use std::cmp::Reverse;
-use std::collections::{BinaryHeap, HashMap};
+use std::collections::BinaryHeap;
 use std::sync::atomic::{AtomicU32, Ordering};
 use std::time::{Duration, Instant};
 
@@ -23,6 +26,7 @@ use iceoryx2::prelude::*;
 use iceoryx2::service::port_factory::{event, publish_subscribe};
 
 use crate::os::{monotonic_ns, wait_readable};
+use crate::peer_table::PeerTable;
 use crate::{CanBus, CanFrame, CanId, MAX_DATA_LEN, RecvError, SendError};
 
 type Ipc = ipc_threadsafe::Service;
@@ -35,6 +39,11 @@ const SERVICE_PREFIX: &str = "grop/can/";
 
 /// Longest accepted bus name, so that the service names stay well inside iceoryx2's limit.
 const MAX_BUS_NAME_LEN: usize = 64;
+
+/// Senders a node keeps sequence state for, per node the bus admits: nodes that leave and
+/// join again (a restarted process) come back under new keys, so the table holds a few
+/// generations of them before the least recently heard is evicted.
+pub const PEERS_PER_NODE: usize = 4;
 
 /// One frame as it travels through shared memory. Layout is part of the bus protocol: nodes of
 /// different builds must agree on it, hence the explicit type name with a version.
@@ -222,7 +231,7 @@ pub struct VirtualCanBus {
     listener_fd: i32,
     reorder: BinaryHeap<Reverse<Pending>>,
     reorder_capacity: usize,
-    last_seq_by_sender: HashMap<u64, u64>,
+    peers: PeerTable,
     lost_frames: u64,
     notify_failures: u64,
     last_send: Option<Instant>,
@@ -378,7 +387,7 @@ impl VirtualCanBus {
             listener_fd,
             reorder: BinaryHeap::with_capacity(reorder_capacity),
             reorder_capacity,
-            last_seq_by_sender: HashMap::with_capacity(max_nodes),
+            peers: PeerTable::new(max_nodes.saturating_mul(PEERS_PER_NODE)),
             lost_frames: 0,
             notify_failures: 0,
             last_send: None,
@@ -407,6 +416,13 @@ impl VirtualCanBus {
         self.lost_frames
     }
 
+    /// Senders dropped from this node's per-sender table to keep it within
+    /// [`PEERS_PER_NODE`] x `max_nodes` entries (least recently heard first). A dropped sender
+    /// heard again starts afresh: a gap across its eviction is not counted as lost.
+    pub fn evicted_peer_count(&self) -> u64 {
+        self.peers.evicted()
+    }
+
     /// Moves every frame iceoryx2 holds for us into the reorder buffer (until it is full).
     fn drain_subscriber(&mut self) -> Result<(), RecvError> {
         while self.reorder.len() < self.reorder_capacity {
@@ -422,12 +438,8 @@ impl VirtualCanBus {
             if wire.sender_key == self.sender_key {
                 continue; // our own frame: a bus node does not receive what it sent
             }
-            match self.last_seq_by_sender.insert(wire.sender_key, wire.seq) {
-                Some(last) if wire.seq > last.wrapping_add(1) => {
-                    self.lost_frames += wire.seq - last - 1;
-                }
-                _ => {}
-            }
+            let lost = self.peers.observe(wire.sender_key, wire.seq);
+            self.lost_frames = self.lost_frames.saturating_add(lost);
             let frame = wire.decode().map_err(|detail| RecvError::Malformed {
                 bus: self.bus_name.clone(),
                 sender: format!("node key {:016X}", wire.sender_key),
@@ -550,6 +562,65 @@ mod tests {
         assert!(wire.decode().unwrap_err().contains("0x800"));
         wire.raw_id = 0xFFFF_FFFF;
         assert!(wire.decode().is_err());
+    }
+
+    /// A node with a hand-made publisher: sends wire frames with any sender key and sequence
+    /// number, as a hostile or broken process on the same bus could.
+    fn forge(peer: &VirtualCanBus, sender_key: u64, seq: u64) {
+        let frame = CanFrame::new(CanId::Standard(0x123), &[1]).unwrap();
+        peer.publisher
+            .send_copy(WireFrame::encode(&frame, sender_key, seq))
+            .unwrap();
+    }
+
+    fn unique_bus(test: &str) -> String {
+        format!("u{}-{test}", std::process::id())
+    }
+
+    #[test]
+    fn hostile_sequence_numbers_neither_panic_nor_overflow_the_loss_count() {
+        let bus = unique_bus("seq");
+        let mut victim = VirtualCanBus::join(&bus, "victim").unwrap();
+        let attacker = VirtualCanBus::join(&bus, "attacker").unwrap();
+        // Half-range jumps up to the top of the range, a wrap to 0, jumps back and forth.
+        let half = 1u64 << 63;
+        for seq in [0, half - 1, u64::MAX - 1, u64::MAX, 0, 5, 3, u64::MAX, 2] {
+            forge(&attacker, 0xBAD, seq);
+            assert!(victim.try_recv().unwrap().is_some(), "seq {seq}");
+        }
+        // Gaps: half-2 and half-1 (the two half-range jumps), 4 (0 -> 5), 2 (MAX -> 2, across
+        // the wrap); 5 -> 3 is a step back, and 3 -> MAX, more than half the range ahead, reads
+        // as one too. The sum passes u64::MAX: it saturates, never wraps or panics.
+        assert_eq!(victim.lost_frame_count(), u64::MAX);
+    }
+
+    #[test]
+    fn the_peer_table_is_bounded_and_evicts_the_least_recently_heard() {
+        let bus = unique_bus("peers");
+        let config = VirtualBusConfig {
+            max_nodes: 4,
+            ..VirtualBusConfig::default()
+        };
+        let mut victim = VirtualCanBus::join_with_config(&bus, "victim", &config).unwrap();
+        let attacker = VirtualCanBus::join_with_config(&bus, "attacker", &config).unwrap();
+        let bound = victim.peers.capacity();
+        assert_eq!(bound, 4 * PEERS_PER_NODE);
+        // A steady peer, then a stream of invented sender keys (a process cycling its keys, or
+        // a hostile one), then the steady peer again.
+        forge(&attacker, 1, 0);
+        assert!(victim.try_recv().unwrap().is_some());
+        for key in 0..1000u64 {
+            forge(&attacker, 1_000_000 + key, 0);
+            assert!(victim.try_recv().unwrap().is_some());
+            assert!(victim.peers.len() <= bound);
+        }
+        assert_eq!(victim.peers.len(), bound);
+        assert_eq!(victim.evicted_peer_count(), 1001 - bound as u64);
+        // The steady peer was the least recently heard and went first: its next frame is a
+        // first frame again, so no loss is counted across the eviction.
+        forge(&attacker, 1, 10);
+        assert!(victim.try_recv().unwrap().is_some());
+        assert_eq!(victim.lost_frame_count(), 0);
     }
 
     #[test]
