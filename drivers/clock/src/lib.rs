@@ -52,6 +52,12 @@ pub trait Clock: Send + Sync {
 
     /// Ends one [`Clock::begin_hold`] (called by the worker when its answer is ready).
     fn end_hold(&self) {}
+
+    /// Waits for this participant's turn at the current instant: on a simulated clock, until
+    /// the host runs it, in rank order with everyone else due now (a process calls it once after
+    /// joining, so that its first work is ordered like all later work, whatever the order the
+    /// processes started in); the wall clock returns at once.
+    fn wait_turn(&self) {}
 }
 
 /// A clock behind a pointer is that clock.
@@ -72,6 +78,9 @@ macro_rules! forward_clock {
             }
             fn end_hold(&self) {
                 (**self).end_hold()
+            }
+            fn wait_turn(&self) {
+                (**self).wait_turn()
             }
         }
     )*};

@@ -338,6 +338,14 @@ impl SimClockHost {
         }
     }
 
+    /// Waits until no participant is running (each is asleep, or waits for its turn): after
+    /// this, everything the participants set up before their first sleep (subscriptions,
+    /// connections) exists, so what the host does next reaches all of them the same way every
+    /// run.
+    pub fn settle(&mut self) {
+        self.wait_not_running(None);
+    }
+
     /// Moves simulated time forward to `target`: waits until every participant sleeps, steps to
     /// each earlier wake time in turn and runs the participants due then (one at a time, lowest
     /// rank first), and ends with time at `target` and every participant asleep. Participants
@@ -522,29 +530,18 @@ impl Clock for SimClock {
             std::thread::sleep(deadline.saturating_sub(now).min(Duration::from_millis(100)));
             return;
         }
-        let shared = self.shared();
-        if ns(deadline) <= shared.now_ns.load(Ordering::Acquire) {
+        if ns(deadline) <= self.shared().now_ns.load(Ordering::Acquire) {
             return;
         }
-        let slot = &shared.slots[self.slot];
-        let generation = slot.run_gen.load(Ordering::Acquire);
-        slot.wake_ns.store(ns(deadline), Ordering::Release);
-        slot.state.store(SLEEPING, Ordering::Release);
-        shared.host_word.fetch_add(1, Ordering::Release);
-        futex::wake_all(&shared.host_word);
-        loop {
-            if slot.run_gen.load(Ordering::Acquire) != generation {
-                if shared.closed.load(Ordering::Acquire) != 0 {
-                    self.mark_lost();
-                }
-                return;
-            }
-            futex::wait(&slot.run_gen, generation, LIVENESS_POLL);
-            if slot.run_gen.load(Ordering::Acquire) == generation && self.host_gone() {
-                self.mark_lost();
-                return;
-            }
+        self.sleep_registered(ns(deadline));
+    }
+
+    fn wait_turn(&self) {
+        if self.lost.load(Ordering::Acquire) {
+            return;
         }
+        let now = self.shared().now_ns.load(Ordering::Acquire);
+        self.sleep_registered(now);
     }
 
     fn is_lost(&self) -> bool {
@@ -565,6 +562,32 @@ impl Clock for SimClock {
         let _ = holds.fetch_update(Ordering::AcqRel, Ordering::Acquire, |h| h.checked_sub(1));
         shared.host_word.fetch_add(1, Ordering::Release);
         futex::wake_all(&shared.host_word);
+    }
+}
+
+impl SimClock {
+    /// Sleeps until the host runs this participant at `wake_ns` (in rank order).
+    fn sleep_registered(&self, wake_ns: u64) {
+        let shared = self.shared();
+        let slot = &shared.slots[self.slot];
+        let generation = slot.run_gen.load(Ordering::Acquire);
+        slot.wake_ns.store(wake_ns, Ordering::Release);
+        slot.state.store(SLEEPING, Ordering::Release);
+        shared.host_word.fetch_add(1, Ordering::Release);
+        futex::wake_all(&shared.host_word);
+        loop {
+            if slot.run_gen.load(Ordering::Acquire) != generation {
+                if shared.closed.load(Ordering::Acquire) != 0 {
+                    self.mark_lost();
+                }
+                return;
+            }
+            futex::wait(&slot.run_gen, generation, LIVENESS_POLL);
+            if slot.run_gen.load(Ordering::Acquire) == generation && self.host_gone() {
+                self.mark_lost();
+                return;
+            }
+        }
     }
 }
 

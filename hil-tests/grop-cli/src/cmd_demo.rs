@@ -66,6 +66,13 @@ pub struct Args {
     /// Do not run `cargo build` for the world and the onboard binaries first.
     #[arg(long)]
     pub no_build: bool,
+    /// The mission log (MCAP: every topic, every CAN frame, the arm's calls; open it in
+    /// Foxglove, or `grop replay` it).
+    #[arg(long, value_name = "FILE", default_value = "out/demo.mcap")]
+    pub record: PathBuf,
+    /// Do not write the mission log.
+    #[arg(long)]
+    pub no_record: bool,
     /// Simulated time limit of the mission, s.
     #[arg(long, default_value_t = 600.0)]
     pub max_sim_s: f64,

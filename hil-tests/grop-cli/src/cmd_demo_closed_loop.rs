@@ -65,6 +65,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         camera_px: parse_camera(&args.camera)?,
         max_sim_s: args.max_sim_s,
         progress_s: 0.5,
+        log: (!args.no_record).then(|| args.record.clone()),
     };
     println!(
         "scene {:?}: {} chairs, {} objects; robot at {:.1} m/s, R = {}; method {}",
@@ -92,7 +93,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     let report = running.finish(Duration::from_secs(900), &mut echo)?;
     bar.finish_and_clear();
-    print_report(&report, started.elapsed());
+    print_report(&report, started.elapsed(), spec.log.as_deref());
     let picture = draw(&args, &scene, &report);
     if let Some(dir) = args.out.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
@@ -114,7 +115,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     Ok(())
 }
 
-fn print_report(report: &WorldReport, wall: Duration) {
+fn print_report(report: &WorldReport, wall: Duration, spec_log: Option<&std::path::Path>) {
     if let Some(plan) = report.plans.first() {
         println!(
             "decision: plan {} with U = {:.1}, F = {:.2}, C = {:.1} s, decided in {:.2} ms (cut views + Psi + GROP)",
@@ -202,6 +203,19 @@ fn print_report(report: &WorldReport, wall: Duration) {
             legs.len(),
             rms
         );
+    }
+    if let Some(path) = spec_log {
+        match grop_onboard::mission_log::MissionLog::read(path) {
+            Ok(log) => println!(
+                "mission log {}: {} messages, {:.1} MB{} (open it in Foxglove; `grop replay {}` re-runs the planner and the executive against it)",
+                path.display(),
+                log.messages.len(),
+                std::fs::metadata(path).map(|m| m.len()).unwrap_or(0) as f64 / 1e6,
+                if log.truncated.is_some() { ", cut short" } else { "" },
+                path.display()
+            ),
+            Err(e) => println!("mission log: {e}"),
+        }
     }
 }
 

@@ -172,6 +172,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                     camera_px: (640, 480),
                     max_sim_s: 600.0,
                     progress_s: 0.0,
+                    log: None,
                 };
                 let t0 = Instant::now();
                 let result = mission::start(&spec, &bins)

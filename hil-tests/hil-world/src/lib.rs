@@ -321,6 +321,9 @@ impl World {
                 let names: Vec<String> =
                     self.host.participants().into_iter().map(|p| p.0).collect();
                 if cfg.expect.iter().all(|e| names.iter().any(|n| n == e)) {
+                    // Their subscriptions exist once they wait for their first turn: only then
+                    // does the world publish its first frame and fix.
+                    self.host.settle();
                     joined = true;
                     mission_start = Some(now);
                     self.host.set_pace(cfg.pace);
@@ -332,6 +335,14 @@ impl World {
                     log::error!("world: onboard processes never joined ({names:?})");
                     report.end = MissionEnd::NeverStarted;
                     break;
+                } else {
+                    // Simulated time stays at zero (nothing is stepped) until everyone is
+                    // there: how long the processes take to start never shows in the mission,
+                    // so the same mission twice is the same, message for message. Connecting
+                    // needs no step (request/reply, and the controller sends a state package
+                    // as soon as RTDE streaming starts).
+                    std::thread::sleep(Duration::from_millis(2));
+                    continue;
                 }
             }
 
@@ -746,7 +757,7 @@ impl World {
 
     fn world_event(&mut self, kind: grop_ipc::EventKind, now: Duration, detail: &str) {
         log::info!("world: {detail}");
-        let msg = EventMsg::new(kind, ns(now), detail);
+        let msg = EventMsg::new(kind, ns(now), detail).with_source(grop_ipc::ProcessRole::World);
         let _ = self.ports.world_events.publish(&msg);
     }
 }

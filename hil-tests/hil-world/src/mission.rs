@@ -24,9 +24,16 @@ pub struct Binaries {
     pub planner: PathBuf,
     /// `grop-executive`.
     pub executive: PathBuf,
+    /// `grop-recorder`.
+    pub recorder: PathBuf,
 }
 
-const NAMES: [&str; 3] = ["grop-world", "grop-planner", "grop-executive"];
+const NAMES: [&str; 4] = [
+    "grop-world",
+    "grop-planner",
+    "grop-executive",
+    "grop-recorder",
+];
 
 fn workspace_root() -> PathBuf {
     // hil-tests/hil-world -> the workspace.
@@ -39,6 +46,7 @@ fn find_in(dir: &Path) -> Option<Binaries> {
         world: p(NAMES[0]),
         planner: p(NAMES[1]),
         executive: p(NAMES[2]),
+        recorder: p(NAMES[3]),
     })
 }
 
@@ -70,7 +78,7 @@ pub fn binaries(build: bool) -> anyhow::Result<Binaries> {
                 .status()
                 .context("running cargo build for the world and the onboard binaries")?;
             if !status.success() {
-                bail!("cargo build of grop-world, grop-planner and grop-executive failed");
+                bail!("cargo build of grop-world and the onboard binaries failed");
             }
         }
     }
@@ -78,7 +86,7 @@ pub fn binaries(build: bool) -> anyhow::Result<Binaries> {
         .or_else(|| up.as_deref().and_then(find_in))
         .with_context(|| {
             format!(
-                "grop-world, grop-planner and grop-executive are not next to {} (build them: \
+                "grop-world, grop-planner, grop-executive and grop-recorder are not next to {} (build them: \
                  cargo build -p hil-world -p grop-onboard --bins)",
                 exe.display()
             )
@@ -112,6 +120,8 @@ pub struct MissionSpec {
     pub max_sim_s: f64,
     /// World progress lines every this many simulated seconds (0: none).
     pub progress_s: f64,
+    /// Write the mission log (MCAP) here (`grop-recorder` joins the mission); `None`: no log.
+    pub log: Option<PathBuf>,
 }
 
 static RUNS: AtomicU64 = AtomicU64::new(0);
@@ -140,6 +150,8 @@ pub struct RunningMission {
     pub planner: Child,
     /// The executive.
     pub executive: Child,
+    /// The recorder, when the mission is logged.
+    pub recorder: Option<Child>,
     lines: Receiver<String>,
     report_path: PathBuf,
     dir: PathBuf,
@@ -210,11 +222,13 @@ impl RunningMission {
             }
             // An onboard process that exits with an error (not one we killed) will never join:
             // say why instead of waiting for the world's join timeout.
+            let recorder = self.recorder.as_mut().map(|c| ("recorder", c));
             let exited = [
                 ("planner", &mut self.planner),
                 ("executive", &mut self.executive),
             ]
             .into_iter()
+            .chain(recorder)
             .find_map(|(name, child)| match child.try_wait() {
                 Ok(Some(status)) if status.code().is_some_and(|c| c != 0) => Some((name, status)),
                 _ => None,
@@ -258,6 +272,28 @@ impl RunningMission {
     }
 
     fn stop_onboard(&mut self) {
+        // The recorder ends by itself when the world's clock closes (it finishes the file
+        // first); on the wall clock, or if it lingers, SIGTERM does the same.
+        if let Some(recorder) = self.recorder.as_mut() {
+            let end = Instant::now() + Duration::from_secs(30);
+            while matches!(recorder.try_wait(), Ok(None)) && Instant::now() < end {
+                if self.world.try_wait().ok().flatten().is_none() {
+                    break;
+                }
+                std::thread::sleep(Duration::from_millis(10));
+            }
+            if matches!(recorder.try_wait(), Ok(None)) {
+                kill(recorder, libc::SIGTERM);
+                let end = Instant::now() + Duration::from_secs(30);
+                while matches!(recorder.try_wait(), Ok(None)) && Instant::now() < end {
+                    std::thread::sleep(Duration::from_millis(10));
+                }
+            }
+            if matches!(recorder.try_wait(), Ok(None)) {
+                kill(recorder, libc::SIGKILL);
+            }
+            let _ = recorder.wait();
+        }
         for child in [&mut self.planner, &mut self.executive] {
             if matches!(child.try_wait(), Ok(None)) {
                 kill(child, libc::SIGTERM);
@@ -278,7 +314,11 @@ impl RunningMission {
 
 impl Drop for RunningMission {
     fn drop(&mut self) {
-        for child in [&mut self.world, &mut self.planner, &mut self.executive] {
+        let recorder = self.recorder.as_mut();
+        for child in [&mut self.world, &mut self.planner, &mut self.executive]
+            .into_iter()
+            .chain(recorder)
+        {
             if matches!(child.try_wait(), Ok(None)) {
                 kill(child, libc::SIGKILL);
                 let _ = child.wait();
@@ -337,6 +377,9 @@ pub fn start(spec: &MissionSpec, bins: &Binaries) -> anyhow::Result<RunningMissi
         .stderr(log("world")?);
     if let Some(p) = spec.pace {
         world_cmd.args(["--pace", &p.to_string()]);
+    }
+    if spec.log.is_some() {
+        world_cmd.args(["--expect", "grop-planner,grop-executive,grop-recorder"]);
     }
     let mut world = world_cmd.spawn().context("starting grop-world")?;
     let stdout = world.stdout.take().context("grop-world has no stdout")?;
@@ -409,11 +452,31 @@ pub fn start(spec: &MissionSpec, bins: &Binaries) -> anyhow::Result<RunningMissi
         )
         .spawn()
         .context("starting grop-executive")?;
+    let recorder = match &spec.log {
+        Some(path) => Some(
+            Command::new(&bins.recorder)
+                .arg("--deployment")
+                .arg(&deployment_path)
+                .arg("--out")
+                .arg(path)
+                .stdin(Stdio::null())
+                .stdout(log("recorder-out")?)
+                .stderr(log("recorder")?)
+                .env(
+                    "RUST_LOG",
+                    std::env::var("RUST_LOG").unwrap_or_else(|_| "info".into()),
+                )
+                .spawn()
+                .context("starting grop-recorder")?,
+        ),
+        None => None,
+    };
     Ok(RunningMission {
         run,
         world,
         planner,
         executive,
+        recorder,
         lines,
         report_path,
         dir: spec.dir.clone(),

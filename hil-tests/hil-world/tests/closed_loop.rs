@@ -32,6 +32,7 @@ fn spec(test: &str, seed: u64) -> MissionSpec {
         camera_px: (640, 480),
         max_sim_s: 400.0,
         progress_s: 0.1,
+        log: None,
     }
 }
 

@@ -22,6 +22,7 @@ use crate::SimConfig;
 use crate::fields::{InputTable, OutputField, resolve_output};
 use crate::primary;
 use crate::robot::{RobotModel, Snapshot};
+use crate::stepping::Stepping;
 use crate::stepping::{self, AckSlot, ReaderSync, STEP_WAIT, StepReport};
 use crate::urscript::parse_program;
 
@@ -421,7 +422,7 @@ fn rtde_stream(
             continue;
         };
         seen = p.seq;
-        match rtde_write_package(shared, &p, &mut buf, writer, conn) {
+        match rtde_write_package(shared, &p, &mut buf, writer, conn, false) {
             Ok(wrote) => shared.ack(id, p.seq, wrote),
             Err(()) => break,
         }
@@ -438,11 +439,12 @@ fn rtde_write_package(
     buf: &mut Vec<u8>,
     writer: &Mutex<TcpStream>,
     conn: &Mutex<RtdeConn>,
+    even_if_not_due: bool,
 ) -> Result<bool, ()> {
     let (recipe, protocol) = {
         let c = lock(conn);
         match (&c.output, c.started) {
-            (Some(r), true) if p.seq % r.divisor == 0 => (r.clone(), c.protocol),
+            (Some(r), true) if even_if_not_due || p.seq % r.divisor == 0 => (r.clone(), c.protocol),
             _ => return Ok(false),
         }
     };
@@ -669,6 +671,17 @@ fn rtde_handle(
             w.write_all(&buf)?;
             // Set after the reply is written, under the writer lock: no data before the reply.
             c.started = ok;
+            drop((c, w));
+            // Externally stepped, the next cycle may be far off (the world holds time until
+            // every process has joined): send the current state now, as a real controller's
+            // first package follows the start at once.
+            if ok && shared.cfg.stepping == Stepping::External {
+                let p = *lock(&shared.published);
+                let mut buf = Vec::with_capacity(2048);
+                if rtde_write_package(shared, &p, &mut buf, writer, conn, true).is_err() {
+                    return Err(io::Error::other("writing the first data package"));
+                }
+            }
             Ok(())
         }
         PackageType::Pause => {

@@ -16,6 +16,7 @@
 //! | `<ns>/base/pose` | [`BasePoseMsg`] (localisation fixes) | newest fix |
 //! | `<ns>/health` | [`HeartbeatMsg`] | none |
 //! | `<ns>/camera/frame` | [`CameraFrameMsg`] (1280 x 960 RGB8 max + metric header) | newest frame |
+//! | `<ns>/arm/io` | [`ArmIoMsg`] (every call on the arm and its answer) | none |
 //!
 //! ```no_run
 //! use std::time::Duration;
@@ -41,11 +42,16 @@
 //! `stamp_ns` from the runtime clock, and [`Received::age_ns`] / [`Received::is_stale`] compare
 //! it with the reader's now.
 
+mod arm_io;
 mod camera;
 mod messages;
 mod mission;
 mod port;
 
+pub use arm_io::{
+    ARM_FLAG_CLOSE, ARM_FLAG_EMERGENCY_STOP, ARM_FLAG_PROGRAM_RUNNING, ARM_FLAG_PROTECTIVE_STOP,
+    ARM_STATUS_DONE, ARM_STATUS_DONE_HOLDING, ARM_STATUS_RUNNING, ArmCall, ArmIoMsg, ArmOutcome,
+};
 pub use camera::{
     CAMERA_MAX_BYTES, CAMERA_MAX_HEIGHT_PX, CAMERA_MAX_WIDTH_PX, CameraFrameHeader, CameraFrameMsg,
     PixelFormat,
@@ -98,6 +104,7 @@ mod sealed {
     impl Sealed for super::BasePoseMsg {}
     impl Sealed for super::HeartbeatMsg {}
     impl Sealed for super::CameraFrameMsg {}
+    impl Sealed for super::ArmIoMsg {}
 }
 
 impl Topic for OverheadFrame {
@@ -228,5 +235,17 @@ impl Topic for CameraFrameMsg {
     const MAX_PUBLISHERS: usize = 2;
     fn stamp_ns(&self) -> u64 {
         self.header.stamp_ns
+    }
+}
+
+impl Topic for ArmIoMsg {
+    const NAME: &'static str = "arm/io";
+    const HISTORY: usize = 0;
+    // Up to three calls a 2 ms cycle; a recorder drains every cycle.
+    const BUFFER: usize = 256;
+    const MAX_SUBSCRIBERS: usize = 4;
+    const MAX_PUBLISHERS: usize = 2;
+    fn stamp_ns(&self) -> u64 {
+        self.stamp_ns
     }
 }

@@ -561,8 +561,9 @@ pub struct EventMsg {
     pub step_index: u32,
     /// Bytes of `detail` in use.
     pub detail_len: u32,
-    /// Zero.
-    pub reserved: u32,
+    /// The publisher's [`crate::ProcessRole`] as an integer, 0 when not said (this field was
+    /// reserved, always zero, before: the layout is unchanged).
+    pub source: u32,
     /// UTF-8 text for humans and logs; read with [`EventMsg::detail`].
     pub detail: [u8; EVENT_DETAIL_CAPACITY],
 }
@@ -577,7 +578,7 @@ impl EventMsg {
             kind: kind as u32,
             step_index: 0,
             detail_len: 0,
-            reserved: 0,
+            source: 0,
             detail: [0; EVENT_DETAIL_CAPACITY],
         };
         let mut end = detail.len().min(EVENT_DETAIL_CAPACITY);
@@ -593,6 +594,17 @@ impl EventMsg {
     /// The kind, checked.
     pub fn kind(&self) -> Result<EventKind, MessageError> {
         EventKind::from_wire(self.kind)
+    }
+
+    /// Says who publishes it.
+    pub fn with_source(mut self, role: crate::ProcessRole) -> Self {
+        self.source = role as u32;
+        self
+    }
+
+    /// Who published it (`None` when not said or unknown).
+    pub fn source(&self) -> Option<crate::ProcessRole> {
+        crate::ProcessRole::from_wire(self.source).ok()
     }
 
     /// The text, checked.

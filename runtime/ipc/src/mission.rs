@@ -499,7 +499,7 @@ pub enum ProcessRole {
 }
 
 impl ProcessRole {
-    fn from_wire(value: u32) -> Result<Self, MessageError> {
+    pub(crate) fn from_wire(value: u32) -> Result<Self, MessageError> {
         Ok(match value {
             1 => Self::Planner,
             2 => Self::Executive,

@@ -8,5 +8,6 @@
 pub mod deployment;
 pub mod executive;
 pub mod localisation;
+pub mod mission_log;
 pub mod planner_node;
 pub mod process;

@@ -281,6 +281,7 @@ impl PlannerNode {
     /// [`step`](Self::step), absolute deadlines (a late cycle does not shift the later ones;
     /// missed cycles are skipped and counted as overruns).
     pub fn run(&mut self, clock: &dyn Clock, stop: &AtomicBool) -> Result<(), PlannerNodeError> {
+        clock.wait_turn();
         let mut next = clock.now();
         while !stop.load(Ordering::Relaxed) {
             if clock.is_lost() {

@@ -13,6 +13,7 @@ use anyhow::Context;
 use can_bus::{CanBus, SocketCanBus, VirtualCanBus};
 use clap::Parser;
 use grop_onboard::deployment::CanSpec;
+use grop_onboard::executive::arm_io::RecordingArm;
 use grop_onboard::executive::ur5e_arm::{ArmMotionSettings, Ur5eDevice};
 use grop_onboard::executive::{Executive, ExecutiveConfig, MissionState};
 
@@ -77,9 +78,11 @@ fn main() -> anyhow::Result<()> {
     };
     let arm = ur5e::Ur5eArm::connect(arm_config)
         .with_context(|| format!("connecting the UR5e at {}", a.host))?;
-    let arm = Ur5eDevice::new(arm, ArmMotionSettings::default());
     let node = grop_ipc::IpcNode::new(&deployment.namespace, "grop-executive")
         .context("joining the iceoryx2 namespace")?;
+    // Every arm call and its answer goes out on `arm/io` (the mission log's RTDE record).
+    let arm = RecordingArm::new(Ur5eDevice::new(arm, ArmMotionSettings::default()), &node)
+        .context("opening arm/io")?;
     let clock: Arc<dyn grop_clock::Clock> = Arc::from(
         grop_clock::open(&deployment.clock, "grop-executive", EXECUTIVE_CLOCK_RANK)
             .with_context(|| format!("opening clock {}", deployment.clock))?,

@@ -24,6 +24,7 @@
 //! localisation holds the base at zero until fixes return. If this process dies, the base's own
 //! 0.5 s loss-of-command timeout and the arm controller's RTDE watchdog stop both.
 
+pub mod arm_io;
 pub mod unload;
 pub mod ur5e_arm;
 pub mod worker;
@@ -455,6 +456,7 @@ impl<B: CanBus, A: ArmDevice> Executive<B, A> {
     /// Runs cycles until `keep_going` says stop, the mission ends and `exit_when_done` is set,
     /// or the clock is lost. Returns the final state.
     pub fn run(&mut self, keep_going: &dyn Fn() -> bool, exit_when_done: bool) -> MissionState {
+        self.clock.wait_turn();
         let mut deadline = self.clock.now();
         loop {
             if !keep_going() {
@@ -717,14 +719,15 @@ impl<B: CanBus, A: ArmDevice> Executive<B, A> {
         self.event(
             EventKind::PlanStarted,
             now,
+            // Not the wall-clock decision time: events are behaviour, and the same mission
+            // must log the same events (the time is in the plan and the log's /timing/).
             format_args!(
-                "plan {}: {} steps, U={:.1} F={:.2} C={:.1}s, decided in {} us",
+                "plan {}: {} steps, U={:.1} F={:.2} C={:.1}s",
                 plan.plan_id,
                 steps.len(),
                 plan.utility,
                 plan.feasibility,
-                plan.cost_s,
-                plan.decision_us
+                plan.cost_s
             ),
         );
     }
@@ -1255,7 +1258,7 @@ impl<B: CanBus, A: ArmDevice> Executive<B, A> {
         self.event_seq += 1;
         let detail = text(args);
         log::info!("event {kind:?} step {}: {detail}", self.step_index);
-        let mut msg = EventMsg::new(kind, ns(now), &detail);
+        let mut msg = EventMsg::new(kind, ns(now), &detail).with_source(ProcessRole::Executive);
         msg.seq = self.event_seq;
         msg.plan_id = self.plan_id;
         msg.step_index = self.step_index as u32;

@@ -1,0 +1,381 @@
+//! What the recorder does: at each of its cycles, take everything published since the last one
+//! on every topic and every frame on the CAN bus, encode it and queue it for the writer. Camera
+//! frames are kept at the rate the planner uses them: one per `camera_period`, plus any frame a
+//! plan or heatmaps name that was not kept (the newest few frames wait in a small ring for that),
+//! so a replay always has the frame each decision saw.
+
+use std::collections::VecDeque;
+
+use can_bus::CanBus;
+use grop_ipc::{
+    ArmIoMsg, ArmStateMsg, BasePoseMsg, BaseStateMsg, CameraFrameMsg, EventMsg, HeartbeatMsg,
+    HeatmapsMsg, IpcNode, ReplanRequestMsg, TaskPlanMsg, Topic, TopicSubscriber,
+};
+
+use super::LogError;
+use super::codec::{self, Channel};
+use super::writer::{LogWriter, WriterSummary};
+
+/// Frames kept back in case a plan names them.
+const CAMERA_RING: usize = 4;
+
+/// Settings of the recorder.
+#[derive(Debug, Clone, Copy)]
+pub struct RecorderConfig {
+    /// Keep at most one camera frame per this many ns (plus the frames plans name).
+    pub camera_period_ns: u64,
+}
+
+impl Default for RecorderConfig {
+    fn default() -> Self {
+        Self {
+            camera_period_ns: 1_000_000_000,
+        }
+    }
+}
+
+struct Subs {
+    camera: TopicSubscriber<CameraFrameMsg>,
+    heatmaps: TopicSubscriber<HeatmapsMsg>,
+    plans: TopicSubscriber<TaskPlanMsg>,
+    requests: TopicSubscriber<ReplanRequestMsg>,
+    poses: TopicSubscriber<BasePoseMsg>,
+    base: TopicSubscriber<BaseStateMsg>,
+    arm: TopicSubscriber<ArmStateMsg>,
+    arm_io: TopicSubscriber<ArmIoMsg>,
+    events: TopicSubscriber<EventMsg>,
+    health: TopicSubscriber<HeartbeatMsg>,
+}
+
+/// A frame not (yet) logged.
+struct HeldFrame {
+    frame_id: u64,
+    log_time: u64,
+    stamp: u64,
+    msg: Box<CameraFrameMsg>,
+}
+
+/// The recorder's state (see the module docs).
+pub struct Recorder {
+    subs: Subs,
+    bus: Option<Box<dyn CanBus + Send>>,
+    writer: LogWriter,
+    config: RecorderConfig,
+    last_camera_stamp: Option<u64>,
+    held: VecDeque<HeldFrame>,
+    /// Recently logged frame ids.
+    logged_frames: VecDeque<u64>,
+    receive_errors: u64,
+}
+
+fn port(e: impl std::fmt::Display) -> LogError {
+    LogError::Source(e.to_string())
+}
+
+fn zeroed_frame() -> Box<CameraFrameMsg> {
+    let layout = std::alloc::Layout::new::<CameraFrameMsg>();
+    // SAFETY: CameraFrameMsg is plain data for which all-zero bytes are a valid value (the ipc
+    // crate's Topic contract); the box owns a fresh zeroed allocation of exactly its layout.
+    unsafe {
+        let ptr = std::alloc::alloc_zeroed(layout).cast::<CameraFrameMsg>();
+        if ptr.is_null() {
+            std::alloc::handle_alloc_error(layout);
+        }
+        Box::from_raw(ptr)
+    }
+}
+
+impl Recorder {
+    /// Subscribes to every topic in `node`'s namespace (and listens on `bus`, if given).
+    pub fn new(
+        node: &IpcNode,
+        bus: Option<Box<dyn CanBus + Send>>,
+        writer: LogWriter,
+        config: RecorderConfig,
+    ) -> Result<Self, LogError> {
+        Ok(Self {
+            subs: Subs {
+                camera: node.subscriber().map_err(port)?,
+                heatmaps: node.subscriber().map_err(port)?,
+                plans: node.subscriber().map_err(port)?,
+                requests: node.subscriber().map_err(port)?,
+                poses: node.subscriber().map_err(port)?,
+                base: node.subscriber().map_err(port)?,
+                arm: node.subscriber().map_err(port)?,
+                arm_io: node.subscriber().map_err(port)?,
+                events: node.subscriber().map_err(port)?,
+                health: node.subscriber().map_err(port)?,
+            },
+            bus,
+            writer,
+            config,
+            last_camera_stamp: None,
+            held: VecDeque::with_capacity(CAMERA_RING),
+            logged_frames: VecDeque::with_capacity(16),
+            receive_errors: 0,
+        })
+    }
+
+    /// Messages dropped by the writer so far.
+    pub fn dropped(&self) -> u64 {
+        self.writer.dropped()
+    }
+
+    /// Receive errors so far (a topic that could not be read; the message is lost).
+    pub fn receive_errors(&self) -> u64 {
+        self.receive_errors
+    }
+
+    fn drain_topic<T: Topic>(
+        sub: &TopicSubscriber<T>,
+        errors: &mut u64,
+        mut each: impl FnMut(&T),
+    ) -> usize {
+        let mut n = 0;
+        loop {
+            match sub.try_recv() {
+                Ok(Some(m)) => {
+                    each(&m);
+                    n += 1;
+                }
+                Ok(None) => return n,
+                Err(_) => {
+                    *errors += 1;
+                    return n;
+                }
+            }
+        }
+    }
+
+    /// Takes what `sub` has, encoded, in a canonical order: by stamp, then sequence number,
+    /// then payload. iceoryx2 hands out the samples of several publishers connection by
+    /// connection, in an order that depends on which process connected first; sorting makes
+    /// the log the same for the same mission.
+    fn take<T: Topic>(
+        sub: &TopicSubscriber<T>,
+        errors: &mut u64,
+        key: fn(&T) -> (u64, u64),
+        encode: fn(&T) -> Vec<u8>,
+    ) -> Vec<(u64, u64, Vec<u8>)> {
+        let mut out = Vec::new();
+        Self::drain_topic(sub, errors, |m| {
+            let (stamp, seq) = key(m);
+            out.push((stamp, seq, encode(m)));
+        });
+        out.sort();
+        out
+    }
+
+    /// Takes everything published since the last call and queues it with log time `now_ns`.
+    /// Returns how many messages it took.
+    pub fn drain(&mut self, now_ns: u64) -> usize {
+        let e = &mut self.receive_errors;
+        // Inputs of the onboard processes first, then what they made of them.
+        let batches = [
+            (
+                Channel::BasePose,
+                Self::take(
+                    &self.subs.poses,
+                    e,
+                    |m| (m.stamp_ns, m.seq),
+                    codec::encode_base_pose,
+                ),
+            ),
+            (
+                Channel::Health,
+                Self::take(
+                    &self.subs.health,
+                    e,
+                    |m| (m.stamp_ns, m.seq),
+                    codec::encode_health,
+                ),
+            ),
+            (
+                Channel::ArmIo,
+                Self::take(
+                    &self.subs.arm_io,
+                    e,
+                    |m| (m.stamp_ns, m.seq),
+                    codec::encode_arm_io,
+                ),
+            ),
+            (
+                Channel::ArmState,
+                Self::take(
+                    &self.subs.arm,
+                    e,
+                    |m| (m.stamp_ns, m.seq),
+                    codec::encode_arm_state,
+                ),
+            ),
+            (
+                Channel::BaseState,
+                Self::take(
+                    &self.subs.base,
+                    e,
+                    |m| (m.stamp_ns, m.seq),
+                    codec::encode_base_state,
+                ),
+            ),
+            (
+                Channel::PlanRequest,
+                Self::take(
+                    &self.subs.requests,
+                    e,
+                    |m| (m.stamp_ns, m.request_id),
+                    codec::encode_plan_request,
+                ),
+            ),
+            (
+                Channel::Events,
+                Self::take(
+                    &self.subs.events,
+                    e,
+                    |m| (m.stamp_ns, m.seq),
+                    codec::encode_event,
+                ),
+            ),
+        ];
+        let mut n = 0;
+        for (channel, batch) in batches {
+            n += batch.len();
+            for (stamp, _, data) in batch {
+                self.writer.push(channel, now_ns, stamp, data);
+            }
+        }
+        if let Some(bus) = self.bus.as_mut() {
+            loop {
+                match bus.try_recv() {
+                    Ok(Some(f)) => {
+                        self.writer
+                            .push(Channel::Can, now_ns, now_ns, codec::encode_can(&f));
+                        n += 1;
+                    }
+                    Ok(None) => break,
+                    Err(_) => {
+                        self.receive_errors += 1;
+                        break;
+                    }
+                }
+            }
+        }
+        n += self.drain_camera(now_ns);
+        // Plans and heatmaps name their frame: log it first if it was held back.
+        let mut named: Vec<u64> = Vec::new();
+        let mut plans: Vec<(u64, Vec<u8>, Vec<u8>)> = Vec::new();
+        let mut maps: Vec<(u64, Vec<u8>)> = Vec::new();
+        n += Self::drain_topic(&self.subs.plans, &mut self.receive_errors, |m| {
+            named.push(m.source_frame_id);
+            plans.push((
+                m.stamp_ns,
+                codec::encode_task_plan(m),
+                codec::encode_decision_timing(m),
+            ));
+        });
+        n += Self::drain_topic(&self.subs.heatmaps, &mut self.receive_errors, |m| {
+            named.push(m.source_frame_id);
+            maps.push((m.stamp_ns, codec::encode_heatmaps(m)));
+        });
+        for id in named {
+            self.log_held_frame(id);
+        }
+        for (stamp, data) in maps {
+            self.writer.push(Channel::Heatmaps, now_ns, stamp, data);
+        }
+        for (stamp, plan, timing) in plans {
+            self.writer.push(Channel::TaskPlan, now_ns, stamp, plan);
+            self.writer
+                .push(Channel::DecisionTiming, now_ns, stamp, timing);
+        }
+        n
+    }
+
+    fn drain_camera(&mut self, now_ns: u64) -> usize {
+        let mut n = 0;
+        loop {
+            let frame = match self.subs.camera.try_recv() {
+                Ok(Some(f)) => f,
+                Ok(None) => break,
+                Err(_) => {
+                    self.receive_errors += 1;
+                    break;
+                }
+            };
+            n += 1;
+            let stamp = frame.header.stamp_ns;
+            let due = self
+                .last_camera_stamp
+                .is_none_or(|last| stamp.saturating_sub(last) >= self.config.camera_period_ns);
+            if due {
+                self.last_camera_stamp = Some(stamp);
+                self.mark_logged(frame.header.frame_id);
+                self.writer.push(
+                    Channel::CameraFrame,
+                    now_ns,
+                    stamp,
+                    codec::encode_camera(&frame),
+                );
+                continue;
+            }
+            // Held back: reuse the oldest buffer when the ring is full.
+            let mut held = if self.held.len() == CAMERA_RING {
+                self.held.pop_front()
+            } else {
+                None
+            }
+            .unwrap_or_else(|| HeldFrame {
+                frame_id: 0,
+                log_time: 0,
+                stamp: 0,
+                msg: zeroed_frame(),
+            });
+            held.frame_id = frame.header.frame_id;
+            held.log_time = now_ns;
+            held.stamp = stamp;
+            match frame.image() {
+                Ok(img) => {
+                    let len = img.len();
+                    held.msg.header = frame.header;
+                    held.msg.pixels[..len].copy_from_slice(img);
+                    self.held.push_back(held);
+                }
+                Err(_) => self.receive_errors += 1,
+            }
+        }
+        n
+    }
+
+    fn mark_logged(&mut self, frame_id: u64) {
+        if self.logged_frames.len() == self.logged_frames.capacity() {
+            self.logged_frames.pop_front();
+        }
+        self.logged_frames.push_back(frame_id);
+    }
+
+    fn log_held_frame(&mut self, frame_id: u64) {
+        if self.logged_frames.contains(&frame_id) {
+            return;
+        }
+        if let Some(i) = self.held.iter().position(|h| h.frame_id == frame_id) {
+            if let Some(h) = self.held.remove(i) {
+                self.mark_logged(frame_id);
+                self.writer.push(
+                    Channel::CameraFrame,
+                    h.log_time,
+                    h.stamp,
+                    codec::encode_camera(&h.msg),
+                );
+            }
+        }
+    }
+
+    /// Takes what is left (with `Some(now)`) and closes the log. A recorder whose simulated
+    /// clock is gone passes `None`: what arrives after the simulation ended happened at no
+    /// simulated time, and logging it would make the same mission log differently.
+    pub fn finish(mut self, now_ns: Option<u64>) -> Result<WriterSummary, LogError> {
+        if let Some(now) = now_ns {
+            self.drain(now);
+        }
+        self.writer.finish()
+    }
+}
