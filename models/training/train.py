@@ -20,6 +20,7 @@ CPU only; torch is kept to --threads threads (default 2) because the machines ar
 from __future__ import annotations
 
 import argparse
+import hashlib
 import json
 import math
 import sys
@@ -214,6 +215,9 @@ def main() -> int:
         return 1
     meta = {
         "model": args.out.name,
+        # Checked by fcn-infer when it loads the model (FcnModel::load): the record must name the
+        # bytes it describes.
+        "sha256": hashlib.sha256(args.out.read_bytes()).hexdigest(),
         "architecture": "PsiFcn (models/training/psi_model.py), FCN-8s-style, strides 2/4/8, learned position biases",
         "widths_c1_c2_c3_k_up1kernel": [c1, c2, c3, k, up1k],
         "parameters": n_params,

@@ -31,6 +31,9 @@ use tract_onnx::prelude::*;
 use tract_onnx::tract_hir::infer::Factoid;
 
 pub mod overhead;
+mod record;
+
+pub use record::{MAX_MODEL_BYTES, MAX_RECORD_BYTES, record_path, sha256_hex};
 
 /// Rows of a crop and of a heatmap (0.0625 m each; row 0 touches the table's centre line).
 pub const CROP_ROWS: usize = 32;
@@ -70,6 +73,38 @@ pub enum ModelLoadError {
         path: PathBuf,
         /// The operating system's error.
         source: std::io::Error,
+    },
+    /// The file is larger than [`MAX_MODEL_BYTES`] (checked before it is read).
+    #[error("FCN model file {path} is {size} bytes, more than the {limit}-byte limit")]
+    TooLarge {
+        /// The file.
+        path: PathBuf,
+        /// Its size (or the bytes read before the read was cut).
+        size: u64,
+        /// The limit.
+        limit: u64,
+    },
+    /// The model's bytes do not have the sha256 its record names: another or a damaged model.
+    #[error(
+        "FCN model file {path} does not match its record {record}: sha256 expected {expected}, actual {actual}"
+    )]
+    ChecksumMismatch {
+        /// The model file.
+        path: PathBuf,
+        /// The record that names the checksum.
+        record: PathBuf,
+        /// The record's sha256.
+        expected: String,
+        /// The file's sha256.
+        actual: String,
+    },
+    /// The record beside the model cannot be read, is not JSON or names no sha256.
+    #[error("FCN model record {record} is unusable: {reason}")]
+    BadRecord {
+        /// The record file.
+        record: PathBuf,
+        /// What is wrong with it.
+        reason: String,
     },
     /// The bytes are not an ONNX model tract can parse.
     #[error("FCN model file {path} is not a valid ONNX model: {reason}")]
@@ -149,19 +184,15 @@ impl std::fmt::Debug for FcnModel {
 
 impl FcnModel {
     /// Loads an ONNX file, checks its interface and prepares the optimised one-crop plan.
+    ///
+    /// Before parsing: a file over [`MAX_MODEL_BYTES`] is refused without being read
+    /// ([`ModelLoadError::TooLarge`]), and when the model's record (`<model>.json`, see
+    /// [`record_path`]) sits beside it, the file's sha256 must be the record's `"sha256"`
+    /// ([`ModelLoadError::ChecksumMismatch`], [`ModelLoadError::BadRecord`]). A model without
+    /// a record loads unverified, with a warning.
     pub fn load(path: &Path) -> Result<FcnModel, ModelLoadError> {
-        let bytes = std::fs::read(path).map_err(|source| {
-            if source.kind() == std::io::ErrorKind::NotFound {
-                ModelLoadError::NotFound {
-                    path: path.to_path_buf(),
-                }
-            } else {
-                ModelLoadError::Io {
-                    path: path.to_path_buf(),
-                    source,
-                }
-            }
-        })?;
+        let bytes = record::read_bounded(path, MAX_MODEL_BYTES)?;
+        record::verify(path, &bytes)?;
         Self::from_bytes(&bytes, path)
     }
 
