@@ -1,4 +1,5 @@
-//! `grop bench`: GROP decision latency on one core, p50 and p99, written to docs/.
+//! `grop bench`: GROP decision latency on one core, p50 and p99, written to
+//! `out/planner-bench.md`, and to the committed `docs/planner-bench.md` with `--write-docs`.
 //!
 //! Cases (evaluation scenes, the real world rendering, FCN and navigation planner):
 //! - `grop-3`: one full GROP decision for 3 objects: 6 crops rendered and run through the FCN,
@@ -31,8 +32,11 @@ pub struct Args {
     #[arg(long, default_value_t = 200)]
     pub iterations: usize,
     /// Markdown file for the results.
-    #[arg(long, default_value = "docs/planner-bench.md")]
+    #[arg(long, default_value = "out/planner-bench.md")]
     pub out: PathBuf,
+    /// Also write the results to docs/planner-bench.md (regenerates the committed doc).
+    #[arg(long)]
+    pub write_docs: bool,
     /// Seed of the scenes.
     #[arg(long, default_value_t = 7)]
     pub seed: u64,
@@ -287,7 +291,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let mut md = String::from(
         "# GROP decision latency\n\n<!-- written by `grop bench` -->\n\nOne core, release build, evaluation scenes \
          (15/20/25 chairs), the committed FCN `models/psi-fcn.onnx`, shortest any-angle paths on the world's 0.1 m grid (corner visibility graph, built once per map: the `map` row). \
-         Reproduce: `cargo run --release -p grop-cli -- bench`.\n\n| case | what | n | p50 (ms) | p99 (ms) |\n|---|---|---|---|---|\n",
+         Reproduce: `cargo run --release -p grop-cli -- bench --write-docs`.\n\n| case | what | n | p50 (ms) | p99 (ms) |\n|---|---|---|---|---|\n",
     );
     for c in &cases {
         md.push_str(&format!(
@@ -321,10 +325,21 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             .map(|n| n.get())
             .unwrap_or(1)
     ));
-    if let Some(dir) = args.out.parent().filter(|d| !d.as_os_str().is_empty()) {
+    write_markdown(&args.out, &md)?;
+    if args.write_docs {
+        write_markdown(std::path::Path::new(DOC), &md)?;
+    }
+    Ok(())
+}
+
+/// The committed results, regenerated only with `--write-docs`.
+const DOC: &str = "docs/planner-bench.md";
+
+fn write_markdown(path: &std::path::Path, md: &str) -> anyhow::Result<()> {
+    if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     }
-    std::fs::write(&args.out, md).with_context(|| format!("writing {}", args.out.display()))?;
-    println!("wrote {}", args.out.display());
+    std::fs::write(path, md).with_context(|| format!("writing {}", path.display()))?;
+    println!("wrote {}", path.display());
     Ok(())
 }

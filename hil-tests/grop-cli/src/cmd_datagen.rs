@@ -1,6 +1,10 @@
 //! `grop datagen`: the feasibility dataset (paper section III-B). With no arguments it writes
 //! the paper's 96,000-trial dataset (10 environments x 10 targets x 5 trials x 24 x 8 cells)
 //! into `out/dataset`. Format: docs/dataset.md.
+//!
+//! The dataset is written into a temporary folder beside the destination and renamed into place
+//! at the end ([`staging`]), so a run that fails or is killed midway leaves the previous dataset
+//! whole.
 
 use std::path::PathBuf;
 
@@ -10,7 +14,8 @@ use trial_sim::datagen::{DatagenConfig, SideSelection, generate};
 /// Arguments of `grop datagen`.
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// Output folder (created; files in it are replaced).
+    /// Output folder, replaced as a whole when the run completes (it must be a dataset folder,
+    /// with a dataset.json, or empty, or not exist yet).
     #[arg(long, default_value = "out/dataset")]
     pub out: PathBuf,
     /// Seed of scenes and trials (same seed, same dataset, on any thread count).
@@ -53,6 +58,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         Some(path) => world::RobotConfig::load(path)?,
         None => world::RobotConfig::default(),
     };
+    let staged = staging::StagedDir::prepare(&args.out)?;
     let cfg = DatagenConfig {
         seed: args.seed,
         n_envs: args.envs,
@@ -64,7 +70,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         },
         robot,
         robot_file: args.robot.clone(),
-        out_dir: args.out.clone(),
+        out_dir: staged.path().to_path_buf(),
         write_trials_csv: !args.no_trials_csv,
     };
     if let Some(threads) = args.threads {
@@ -82,7 +88,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     );
     let started = std::time::Instant::now();
     let summary = generate(&cfg, &bar)
-        .with_context(|| format!("generating the dataset into {}", args.out.display()))?;
+        .with_context(|| format!("generating the dataset into {}", staged.path().display()))?;
+    staged.commit()?;
     let total_s = started.elapsed().as_secs_f64();
     println!(
         "{} tasks, {} trials: success rate {:.3} (authors: ~0.31), mean best cell {:.3}, {} tasks without a feasible cell",
@@ -125,4 +132,170 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 
 fn rayon_pool(threads: usize) -> Result<(), String> {
     trial_sim::datagen::set_worker_threads(threads)
+}
+
+/// Replacing a dataset folder without ever leaving a half-written one.
+///
+/// Files go into `.<name>.partial-<pid>` beside the destination `<name>` (same parent, so the
+/// same file system and a rename). At the end the old folder is renamed to `.<name>.old-<pid>`,
+/// the new one to `<name>`, and the old one removed. A failed run removes its partial folder;
+/// a killed one leaves it, and the next run removes it once its process is gone (`/proc/<pid>`).
+/// Killed between the two renames (microseconds), the previous dataset sits whole in
+/// `.<name>.old-<pid>`, and the next run moves it back before it starts.
+pub(crate) mod staging {
+    use std::path::{Path, PathBuf};
+
+    use anyhow::Context;
+
+    /// The manifest every dataset folder holds: what makes a folder safe to replace.
+    const MANIFEST: &str = "dataset.json";
+
+    /// A temporary folder that becomes `dest` on [`StagedDir::commit`].
+    #[derive(Debug)]
+    pub(crate) struct StagedDir {
+        dest: PathBuf,
+        temp: PathBuf,
+        old: PathBuf,
+        committed: bool,
+    }
+
+    impl StagedDir {
+        /// Checks that `dest` may be replaced, clears what killed runs left beside it and
+        /// creates the temporary folder.
+        pub(crate) fn prepare(dest: &Path) -> anyhow::Result<Self> {
+            let name = dest
+                .file_name()
+                .with_context(|| format!("--out {} names no folder", dest.display()))?
+                .to_string_lossy()
+                .into_owned();
+            let parent = dest
+                .parent()
+                .filter(|p| !p.as_os_str().is_empty())
+                .unwrap_or(Path::new("."));
+            std::fs::create_dir_all(parent)
+                .with_context(|| format!("creating {}", parent.display()))?;
+            recover(parent, &name, dest)?;
+            check_replaceable(dest)?;
+            let pid = std::process::id();
+            let temp = parent.join(format!(".{name}.partial-{pid}"));
+            let old = parent.join(format!(".{name}.old-{pid}"));
+            if temp.exists() {
+                std::fs::remove_dir_all(&temp)
+                    .with_context(|| format!("removing {}", temp.display()))?;
+            }
+            std::fs::create_dir(&temp).with_context(|| format!("creating {}", temp.display()))?;
+            Ok(Self {
+                dest: dest.to_path_buf(),
+                temp,
+                old,
+                committed: false,
+            })
+        }
+
+        /// Where the files go until the commit.
+        pub(crate) fn path(&self) -> &Path {
+            &self.temp
+        }
+
+        /// Puts the finished folder in place of `dest` and removes the previous one.
+        pub(crate) fn commit(mut self) -> anyhow::Result<()> {
+            let had_old = self.dest.exists();
+            if had_old {
+                check_replaceable(&self.dest)?;
+                std::fs::rename(&self.dest, &self.old).with_context(|| {
+                    format!("moving {} to {}", self.dest.display(), self.old.display())
+                })?;
+            }
+            if let Err(e) = std::fs::rename(&self.temp, &self.dest) {
+                if had_old {
+                    // Put the previous dataset back.
+                    let _ = std::fs::rename(&self.old, &self.dest);
+                }
+                return Err(e).with_context(|| {
+                    format!("moving {} to {}", self.temp.display(), self.dest.display())
+                });
+            }
+            self.committed = true;
+            if had_old && let Err(e) = std::fs::remove_dir_all(&self.old) {
+                log::warn!(
+                    "could not remove the previous dataset {}: {e}",
+                    self.old.display()
+                );
+            }
+            Ok(())
+        }
+    }
+
+    impl Drop for StagedDir {
+        /// A run that ends without a commit (an error) removes its partial folder.
+        fn drop(&mut self) {
+            if !self.committed {
+                let _ = std::fs::remove_dir_all(&self.temp);
+            }
+        }
+    }
+
+    /// `dest` may be replaced when it does not exist, is an empty folder or holds a dataset.
+    fn check_replaceable(dest: &Path) -> anyhow::Result<()> {
+        if !dest.exists() {
+            return Ok(());
+        }
+        anyhow::ensure!(
+            dest.is_dir(),
+            "--out {} exists and is not a folder; refusing to replace it",
+            dest.display()
+        );
+        let empty = std::fs::read_dir(dest)
+            .with_context(|| format!("reading {}", dest.display()))?
+            .next()
+            .is_none();
+        anyhow::ensure!(
+            empty || dest.join(MANIFEST).is_file(),
+            "--out {} exists and is not a dataset folder (no {MANIFEST}); refusing to replace it: \
+             choose another folder or remove it",
+            dest.display()
+        );
+        Ok(())
+    }
+
+    /// Clears what runs killed earlier left beside `dest` (their processes are gone): partial
+    /// folders are removed; a previous dataset moved aside is put back if `dest` is missing.
+    fn recover(parent: &Path, name: &str, dest: &Path) -> anyhow::Result<()> {
+        let Ok(entries) = std::fs::read_dir(parent) else {
+            return Ok(());
+        };
+        let (partial, old) = (format!(".{name}.partial-"), format!(".{name}.old-"));
+        for entry in entries.flatten() {
+            let file_name = entry.file_name().to_string_lossy().into_owned();
+            let (is_old, pid) = if let Some(pid) = file_name.strip_prefix(&old) {
+                (true, pid)
+            } else if let Some(pid) = file_name.strip_prefix(&partial) {
+                (false, pid)
+            } else {
+                continue;
+            };
+            let Ok(pid) = pid.parse::<u32>() else {
+                continue;
+            };
+            // Only where a live process can be told from a dead one.
+            let procfs = Path::new("/proc/self").exists();
+            if !procfs || Path::new("/proc").join(pid.to_string()).exists() {
+                continue;
+            }
+            let path = entry.path();
+            if is_old && !dest.exists() {
+                log::warn!(
+                    "{} is missing and an interrupted run left the previous dataset in {}: moving it back",
+                    dest.display(),
+                    path.display()
+                );
+                std::fs::rename(&path, dest)
+                    .with_context(|| format!("moving {} to {}", path.display(), dest.display()))?;
+            } else {
+                std::fs::remove_dir_all(&path)
+                    .with_context(|| format!("removing {}", path.display()))?;
+            }
+        }
+        Ok(())
+    }
 }

@@ -1,6 +1,7 @@
 //! `grop eval`: the paper's experiments. GROP and the baselines plan every evaluation task, each
 //! plan is executed in the trial simulator with navigation noise, and the results go to a CSV, a
-//! markdown summary and a Fig. 5-like SVG (see docs/experiments.md).
+//! markdown summary and a Fig. 5-like SVG in `out/experiments` (see docs/experiments.md); the
+//! committed copies under docs/experiments are regenerated only with `--write-docs`.
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -48,8 +49,12 @@ pub enum Goals {
 #[derive(clap::Args, Debug)]
 pub struct Args {
     /// Folder for eval_tasks.csv, summary.md and fig5.svg.
-    #[arg(long, default_value = "docs/experiments")]
+    #[arg(long, default_value = "out/experiments")]
     pub out_dir: PathBuf,
+    /// Also copy the three files into docs/experiments, or into the folder given
+    /// (`--write-docs docs/experiments/oracle`): regenerates the committed results.
+    #[arg(long, num_args = 0..=1, default_missing_value = "docs/experiments", value_name = "DIR")]
+    pub write_docs: Option<PathBuf>,
     /// Ground-truth cache file (simulated once, reused while the settings match).
     #[arg(long, default_value = "target/grop-eval/ground-truth.json")]
     pub cache: PathBuf,
@@ -221,6 +226,20 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         svg.display(),
         started.elapsed().as_secs_f64()
     );
+    if let Some(docs) = &args.write_docs {
+        std::fs::create_dir_all(docs).with_context(|| format!("creating {}", docs.display()))?;
+        // Copying a file onto itself would empty it.
+        let same = |a: &std::path::Path, b: &std::path::Path| matches!((a.canonicalize(), b.canonicalize()), (Ok(a), Ok(b)) if a == b);
+        for file in [&csv, &md_path, &svg]
+            .into_iter()
+            .filter(|_| !same(docs, &args.out_dir))
+        {
+            let to = docs.join(file.file_name().unwrap_or_default());
+            std::fs::copy(file, &to)
+                .with_context(|| format!("copying {} to {}", file.display(), to.display()))?;
+        }
+        println!("wrote the results into {}", docs.display());
+    }
     Ok(())
 }
 

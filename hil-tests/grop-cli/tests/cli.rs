@@ -274,6 +274,172 @@ fn datagen_writes_the_documented_files() {
     assert_eq!(json["summary"]["trials"], 1920);
 }
 
+/// `grop` run in `cwd` (relative defaults such as `out/` and `docs/` land there).
+fn grop_in(cwd: &std::path::Path, args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_grop"))
+        .current_dir(cwd)
+        .args(args)
+        .args(["--log", "warn"])
+        .output()
+        .expect("the grop binary runs")
+}
+
+#[test]
+fn bench_writes_under_out_and_regenerates_the_doc_only_with_write_docs() {
+    let dir = tempfile::tempdir().unwrap();
+    let model = model();
+    let bench = ["bench", "--model", &model, "--iterations", "10"];
+    let o = grop_in(dir.path(), &bench);
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(dir.path().join("out/planner-bench.md").is_file());
+    assert!(
+        !dir.path().join("docs").exists(),
+        "docs/ written without --write-docs"
+    );
+    let o = grop_in(dir.path(), &[&bench[..], &["--write-docs"]].concat());
+    assert!(o.status.success(), "{}", text(&o));
+    let doc = std::fs::read_to_string(dir.path().join("docs/planner-bench.md")).unwrap();
+    assert!(doc.contains("bench --write-docs"), "{doc}");
+}
+
+#[test]
+fn eval_writes_under_out_and_regenerates_the_docs_only_with_write_docs() {
+    let dir = tempfile::tempdir().unwrap();
+    let model = model();
+    let eval = [
+        "eval",
+        "--model",
+        &model,
+        "--evaluator",
+        "binary",
+        "--methods",
+        "grop",
+        "--scenes-per-chair-count",
+        "1",
+        "--tasks-per-scene",
+        "1",
+        "--no-sweep",
+        "--cache",
+        "gt.json",
+    ];
+    let o = grop_in(dir.path(), &eval);
+    assert!(o.status.success(), "{}", text(&o));
+    for f in ["summary.md", "eval_tasks.csv", "fig5.svg"] {
+        assert!(dir.path().join("out/experiments").join(f).is_file(), "{f}");
+    }
+    assert!(
+        !dir.path().join("docs").exists(),
+        "docs/ written without --write-docs"
+    );
+    // Bare: the main results' folder; with a value: a variant's.
+    let o = grop_in(dir.path(), &[&eval[..], &["--write-docs"]].concat());
+    assert!(o.status.success(), "{}", text(&o));
+    let o = grop_in(
+        dir.path(),
+        &[&eval[..], &["--write-docs", "docs/experiments/oracle"]].concat(),
+    );
+    assert!(o.status.success(), "{}", text(&o));
+    for f in ["summary.md", "eval_tasks.csv", "fig5.svg"] {
+        assert!(dir.path().join("docs/experiments").join(f).is_file(), "{f}");
+        assert!(
+            dir.path().join("docs/experiments/oracle").join(f).is_file(),
+            "{f}"
+        );
+    }
+}
+
+/// Every file under `dir` (relative path -> bytes).
+fn snapshot(dir: &std::path::Path) -> std::collections::BTreeMap<PathBuf, Vec<u8>> {
+    let mut files = std::collections::BTreeMap::new();
+    let mut stack = vec![dir.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        for entry in std::fs::read_dir(&d).unwrap() {
+            let path = entry.unwrap().path();
+            if path.is_dir() {
+                stack.push(path);
+            } else {
+                let bytes = std::fs::read(&path).unwrap();
+                files.insert(path.strip_prefix(dir).unwrap().to_path_buf(), bytes);
+            }
+        }
+    }
+    files
+}
+
+#[test]
+fn an_interrupted_datagen_leaves_the_previous_dataset_whole() {
+    let dir = tempfile::tempdir().unwrap();
+    let out_dir = dir.path().join("ds");
+    let out = out_dir.to_str().unwrap();
+    let small = [
+        "datagen",
+        "--envs",
+        "1",
+        "--targets-per-env",
+        "2",
+        "--out",
+        out,
+    ];
+    let o = grop(&[&small[..], &["--seed", "1"]].concat());
+    assert!(o.status.success(), "{}", text(&o));
+    let before = snapshot(&out_dir);
+    // Another seed, killed while it writes its files: the file-size limit (8 KiB) lets the
+    // scene and robot files through and stops the process (SIGXFSZ) inside dataset.npz.
+    let o = Command::new("bash")
+        .arg("-c")
+        .arg("ulimit -f 8; exec \"$0\" \"$@\"")
+        .arg(env!("CARGO_BIN_EXE_grop"))
+        .args(small)
+        .args(["--seed", "2", "--log", "warn"])
+        .output()
+        .unwrap();
+    assert!(
+        !o.status.success(),
+        "the limited run must fail: {}",
+        text(&o)
+    );
+    let after = snapshot(&out_dir);
+    assert_eq!(
+        before.keys().collect::<Vec<_>>(),
+        after.keys().collect::<Vec<_>>()
+    );
+    for (file, bytes) in &before {
+        assert!(after[file] == *bytes, "{} changed", file.display());
+    }
+    // The next complete run replaces the dataset as a whole and clears what the killed one
+    // left behind.
+    let o = grop(&[&small[..], &["--seed", "2"]].concat());
+    assert!(o.status.success(), "{}", text(&o));
+    let json: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out_dir.join("dataset.json")).unwrap()).unwrap();
+    assert_eq!(json["generator"]["seed"], 2);
+    let names: Vec<_> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .collect();
+    assert_eq!(names, ["ds"], "temporary folders left behind");
+}
+
+#[test]
+fn datagen_refuses_to_replace_a_folder_that_is_not_a_dataset() {
+    let dir = tempfile::tempdir().unwrap();
+    let precious = dir.path().join("notes.txt");
+    std::fs::write(&precious, "keep me").unwrap();
+    let o = grop(&[
+        "datagen",
+        "--envs",
+        "1",
+        "--targets-per-env",
+        "1",
+        "--out",
+        dir.path().to_str().unwrap(),
+    ]);
+    let out = text(&o);
+    assert!(!o.status.success(), "{out}");
+    assert!(out.contains("dataset.json"), "{out}");
+    assert_eq!(std::fs::read_to_string(&precious).unwrap(), "keep me");
+}
+
 fn image_header(path: &std::path::Path) -> Vec<u8> {
     std::fs::read(path).unwrap().into_iter().take(8).collect()
 }
