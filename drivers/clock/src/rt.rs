@@ -242,37 +242,57 @@ impl FromStr for RtSettings {
 }
 
 impl fmt::Display for RtSettings {
-    /// The spec that parses back to these settings (`off` when nothing is set).
+    /// The shortest spec that parses back to these settings (`off`, `on`, `on,cpu=1`,
+    /// `lock,heap=64M,fifo=80`, ...).
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         if self.is_off() {
             return f.write_str("off");
         }
-        let mut sep = "";
-        let mut item = |f: &mut fmt::Formatter<'_>, text: fmt::Arguments<'_>| {
-            let r = write!(f, "{sep}{text}");
-            sep = ",";
-            r
+        let mut items: Vec<String> = Vec::new();
+        let preset = Self {
+            cpu: self.cpu,
+            ..Self::ON
         };
-        if self.lock_memory {
-            item(f, format_args!("lock"))?;
-        }
-        if self.prefault_stack_bytes > 0 {
-            item(f, format_args!("stack={}", self.prefault_stack_bytes))?;
-        }
-        if self.prefault_heap_bytes > 0 {
-            item(f, format_args!("heap={}", self.prefault_heap_bytes))?;
-        }
-        if let Some(ns) = self.timer_slack_ns {
-            item(f, format_args!("slack={ns}"))?;
-        }
-        if let Some(p) = self.fifo_priority {
-            item(f, format_args!("fifo={p}"))?;
+        if *self == preset {
+            items.push("on".to_owned());
+        } else {
+            if self.lock_memory {
+                items.push("lock".to_owned());
+            }
+            if self.prefault_stack_bytes == DEFAULT_PREFAULT_STACK_BYTES
+                && self.prefault_heap_bytes == DEFAULT_PREFAULT_HEAP_BYTES
+            {
+                items.push("prefault".to_owned());
+            } else {
+                if self.prefault_stack_bytes > 0 {
+                    items.push(format!("stack={}", size_text(self.prefault_stack_bytes)));
+                }
+                if self.prefault_heap_bytes > 0 {
+                    items.push(format!("heap={}", size_text(self.prefault_heap_bytes)));
+                }
+            }
+            if let Some(ns) = self.timer_slack_ns {
+                items.push(format!("slack={ns}"));
+            }
+            if let Some(p) = self.fifo_priority {
+                items.push(format!("fifo={p}"));
+            }
         }
         if let Some(cpu) = self.cpu {
-            item(f, format_args!("cpu={cpu}"))?;
+            items.push(format!("cpu={cpu}"));
         }
-        Ok(())
+        f.write_str(&items.join(","))
     }
+}
+
+/// Bytes with the largest exact K/M/G suffix.
+fn size_text(bytes: usize) -> String {
+    for (shift, suffix) in [(30, "G"), (20, "M"), (10, "K")] {
+        if bytes >= 1 << shift && bytes % (1 << shift) == 0 {
+            return format!("{}{suffix}", bytes >> shift);
+        }
+    }
+    bytes.to_string()
 }
 
 /// Why an `--rt` spec was refused.
@@ -1078,8 +1098,11 @@ mod tests {
             "lock,slack=1000",
             "on,cpu=1",
             "heap=1G",
+            "stack=1000,heap=3K",
+            "prefault,fifo=2",
         ] {
             let settings = RtSettings::parse(spec).unwrap();
+            assert_eq!(settings.to_string(), spec, "shortest form");
             assert_eq!(
                 RtSettings::parse(&settings.to_string()),
                 Ok(settings),

@@ -12,6 +12,7 @@ mod cmd_demo;
 mod cmd_demo_closed_loop;
 mod cmd_eval;
 mod cmd_hil;
+mod cmd_latency;
 mod cmd_model_eval;
 mod cmd_render;
 mod common;
@@ -44,6 +45,9 @@ enum Command {
     /// Evaluation tasks in closed loop (world + onboard processes) next to `grop eval`'s
     /// calculation of the same tasks, paired.
     Hil(cmd_hil::Args),
+    /// Latency suite: camera frames across processes, loop jitter, CAN round trip,
+    /// allocations; writes out/latency.md (docs/latency.md with --write-docs).
+    Latency(cmd_latency::Args),
 }
 
 fn main() -> std::process::ExitCode {
@@ -57,6 +61,7 @@ fn main() -> std::process::ExitCode {
         Command::Eval(a) => cmd_eval::run(a),
         Command::Bench(a) => cmd_bench::run(a),
         Command::Hil(a) => cmd_hil::run(a),
+        Command::Latency(a) => cmd_latency::run(a),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

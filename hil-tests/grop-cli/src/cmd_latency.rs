@@ -1,0 +1,76 @@
+//! `grop latency`: the latency suite (hil-tests/latency) in one run: camera frames across two
+//! processes (iceoryx2 vs sockets), loop jitter without and with real-time settings, CAN
+//! command to feedback with the driver in the loop, allocations per steady-state cycle; a
+//! markdown report to `out/latency.md`, or `docs/latency.md` with `--write-docs`.
+
+use std::path::PathBuf;
+
+use anyhow::Context;
+use grop_clock::rt::RtSettings;
+use latency::suite::SuiteConfig;
+
+/// Arguments of `grop latency`.
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// Measurement rounds: scales every sample count (10: about 1.5 minutes on 2 cores).
+    #[arg(long, default_value_t = 10)]
+    pub rounds: usize,
+    /// A run of a few seconds (few samples of everything), to check the suite works.
+    #[arg(long)]
+    pub quick: bool,
+    /// Real-time settings of the loop-jitter configurations that use them (`on`, or e.g.
+    /// `fifo=50,cpu=1,lock,slack=1`; see grop_clock::rt).
+    #[arg(long, default_value = "on")]
+    pub rt: RtSettings,
+    /// Markdown report.
+    #[arg(long, default_value = "out/latency.md")]
+    pub out: PathBuf,
+    /// Write the report to docs/latency.md instead (regenerates the committed doc).
+    #[arg(long)]
+    pub write_docs: bool,
+    /// Do not run `cargo build` for grop-latency-peer first.
+    #[arg(long)]
+    pub no_build: bool,
+}
+
+/// The command line that reproduces a run with these arguments.
+fn reproduce(args: &Args) -> String {
+    let mut cmd = String::from("cargo run --release -p grop-cli -- latency");
+    if args.quick {
+        cmd.push_str(" --quick");
+    } else if args.rounds != 10 {
+        cmd.push_str(&format!(" --rounds {}", args.rounds));
+    }
+    if args.rt != RtSettings::ON {
+        cmd.push_str(&format!(" --rt {}", args.rt));
+    }
+    if args.write_docs {
+        cmd.push_str(" --write-docs");
+    }
+    cmd
+}
+
+/// Runs `grop latency`.
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let peer = latency::peer::locate(!args.no_build).context("finding grop-latency-peer")?;
+    let config = if args.quick {
+        SuiteConfig::quick(args.rt)
+    } else {
+        SuiteConfig::with_rounds(args.rounds, args.rt)
+    };
+    let results = latency::suite::run(&peer, &config, |step| eprintln!("latency: {step}"))
+        .context("running the latency suite")?;
+    let md = latency::report::markdown(&results, &reproduce(&args), None);
+    let out = if args.write_docs {
+        PathBuf::from("docs/latency.md")
+    } else {
+        args.out.clone()
+    };
+    if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    }
+    std::fs::write(&out, &md).with_context(|| format!("writing {}", out.display()))?;
+    println!("{md}");
+    println!("wrote {}", out.display());
+    Ok(())
+}
