@@ -49,6 +49,9 @@ pub struct LoopResult {
     pub minor_faults: u64,
     /// Times the loop thread was preempted during the measured cycles.
     pub involuntary_switches: u64,
+    /// Time the loop thread spent runnable but waiting for a CPU during the measured cycles
+    /// (`/proc/thread-self/schedstat`), ns; `None` where the kernel does not report it.
+    pub run_delay_ns: Option<u64>,
     /// The CPU the load was pinned to, when loaded.
     pub load_cpu: Option<usize>,
 }
@@ -157,6 +160,9 @@ pub fn measure_loop(peer_exe: &Path, config: &LoopConfig) -> Result<LoopResult, 
         policy: field(&line, "policy")?,
         minor_faults: field(&line, "minflt")?,
         involuntary_switches: field(&line, "nivcsw")?,
+        run_delay_ns: field::<i64>(&line, "run_delay_ns")
+            .ok()
+            .and_then(|v| u64::try_from(v).ok()),
         rt_report,
         load_cpu,
     })
@@ -177,6 +183,7 @@ pub fn run_loop(hz: u32, cycles: usize, rt_settings: &RtSettings, work: Duration
     let clock = WallClock;
     let period = Duration::from_secs(1) / hz.max(1);
     let mut stats = LoopStats::new(period);
+    let delay_before = run_delay_ns();
     let before = ThreadUsage::now();
     let mut deadline = clock.now() + period;
     for _ in 0..cycles {
@@ -192,10 +199,14 @@ pub fn run_loop(hz: u32, cycles: usize, rt_settings: &RtSettings, work: Duration
         deadline = next;
     }
     let usage = ThreadUsage::now().since(&before);
+    let run_delay = match (delay_before, run_delay_ns()) {
+        (Some(a), Some(b)) => i64::try_from(b.saturating_sub(a)).unwrap_or(i64::MAX),
+        _ => -1,
+    };
     let s = stats.summary();
     let ns = |d: Duration| d.as_nanos();
     println!(
-        "result count={} p50_ns={} p99_ns={} p999_ns={} max_ns={} mean_ns={} overruns={} early={} fifo={fifo} policy={policy} minflt={} nivcsw={}",
+        "result count={} p50_ns={} p99_ns={} p999_ns={} max_ns={} mean_ns={} overruns={} early={} fifo={fifo} policy={policy} minflt={} nivcsw={} run_delay_ns={run_delay}",
         s.count,
         ns(s.p50),
         ns(s.p99),
@@ -207,6 +218,17 @@ pub fn run_loop(hz: u32, cycles: usize, rt_settings: &RtSettings, work: Duration
         usage.minor_faults,
         usage.involuntary_switches
     );
+}
+
+/// Nanoseconds the calling thread has spent runnable, waiting for a CPU (the second field of
+/// `/proc/thread-self/schedstat`).
+fn run_delay_ns() -> Option<u64> {
+    std::fs::read_to_string("/proc/thread-self/schedstat")
+        .ok()?
+        .split_whitespace()
+        .nth(1)?
+        .parse()
+        .ok()
 }
 
 /// The peer side of `spin`: pins itself to `cpu` and burns it until stdin closes.

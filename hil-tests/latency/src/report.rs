@@ -282,9 +282,9 @@ fn jitter(md: &mut String, r: &SuiteResults) {
     );
     let _ = writeln!(
         md,
-        "| loop | other core | RT settings | n | p50 | p99 | p99.9 | max | overruns | policy | preemptions | minor faults |"
+        "| loop | other core | RT settings | n | p50 | p99 | p99.9 | max | overruns | policy | preemptions | waiting for a CPU, mean per cycle | minor faults |"
     );
-    let _ = writeln!(md, "|---|---|---|---|---|---|---|---|---|---|---|---|");
+    let _ = writeln!(md, "|---|---|---|---|---|---|---|---|---|---|---|---|---|");
     for l in &r.jitter {
         let s = &l.summary;
         let load = l
@@ -292,7 +292,7 @@ fn jitter(md: &mut String, r: &SuiteResults) {
             .map_or_else(|| "idle".to_owned(), |cpu| format!("busy (CPU {cpu})"));
         let _ = writeln!(
             md,
-            "| {} Hz | {load} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
+            "| {} Hz | {load} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
             l.config.hz,
             rt_label(l),
             s.count,
@@ -303,6 +303,7 @@ fn jitter(md: &mut String, r: &SuiteResults) {
             s.overruns,
             l.policy,
             l.involuntary_switches,
+            run_delay_text(l),
             l.minor_faults
         );
     }
@@ -321,6 +322,14 @@ fn jitter(md: &mut String, r: &SuiteResults) {
                  SCHED_OTHER with the other settings only.\n"
             );
         }
+    }
+}
+
+/// Mean time per cycle the loop waited for a CPU, or `n/a`.
+fn run_delay_text(l: &LoopResult) -> String {
+    match l.run_delay_ns {
+        Some(ns) => us(ns / l.summary.count.max(1)),
+        None => "n/a".to_owned(),
     }
 }
 
@@ -515,17 +524,21 @@ fn findings(md: &mut String, r: &SuiteResults) {
             "- **50 Hz base loop, idle: {verdict}** (p99 {} us without, {} us with `--rt {}`). \
              The median wake-up is {} us late without RT settings and {} us with them: most of \
              the difference is the default 50 us timer slack, which lets the kernel defer a \
-             wake-up to batch it with other timers. The tail is the machine: {} preemptions of \
-             the loop thread without RT settings, {} under {}; the load average was {} when \
-             the run started (on this 2-core machine other work shares the CPUs).",
+             wake-up to batch it with other timers. The tail is the machine's other work: \
+             woken, the loop thread waited for a CPU {} us per cycle on average without RT \
+             settings and {} us under {} (schedstat run delay), and was preempted {} and {} \
+             times; the load average was {} when the run started (2 CPUs, shared with other \
+             builds and tests).",
             us(duration_ns(plain.summary.p99)),
             us(duration_ns(with_rt.summary.p99)),
             with_rt.config.rt,
             us(duration_ns(plain.summary.p50)),
             us(duration_ns(with_rt.summary.p50)),
+            run_delay_text(plain),
+            run_delay_text(with_rt),
+            with_rt.policy,
             plain.involuntary_switches,
             with_rt.involuntary_switches,
-            with_rt.policy,
             r.machine
                 .loadavg_1min
                 .map_or_else(|| "unknown".to_owned(), |l| format!("{l:.2}")),
