@@ -38,6 +38,8 @@ pub use frame::{
 };
 pub use memory::{DEFAULT_MEMORY_QUEUE_DEPTH, MemoryBus, MemoryBusNode};
 pub use socketcan_bus::{OpenError, SocketCanBus, interface_exists};
+#[doc(hidden)]
+pub use virtual_bus::fuzz_decode_wire_frame;
 pub use virtual_bus::{JoinError, PEERS_PER_NODE, VirtualBusConfig, VirtualCanBus};
 
 /// A node on a CAN bus: sends frames to every other node, receives theirs.

@@ -102,6 +102,49 @@ impl WireFrame {
     }
 }
 
+/// Bytes of a [`WireFrame`] in shared memory.
+pub(crate) const WIRE_FRAME_LEN: usize = core::mem::size_of::<WireFrame>();
+
+impl WireFrame {
+    /// The frame as another process left it in shared memory: the `repr(C)` layout, native byte
+    /// order. Every bit pattern is a valid `WireFrame` (integers and bytes only).
+    fn from_shared_bytes(bytes: &[u8; WIRE_FRAME_LEN]) -> Self {
+        fn at<const N: usize>(bytes: &[u8], offset: usize) -> [u8; N] {
+            let mut out = [0u8; N];
+            out.copy_from_slice(&bytes[offset..offset + N]);
+            out
+        }
+        use core::mem::offset_of;
+        Self {
+            sent_at_ns: u64::from_ne_bytes(at(bytes, offset_of!(Self, sent_at_ns))),
+            sender_key: u64::from_ne_bytes(at(bytes, offset_of!(Self, sender_key))),
+            seq: u64::from_ne_bytes(at(bytes, offset_of!(Self, seq))),
+            raw_id: u32::from_ne_bytes(at(bytes, offset_of!(Self, raw_id))),
+            len: bytes[offset_of!(Self, len)],
+            data: at(bytes, offset_of!(Self, data)),
+            _reserved: at(bytes, offset_of!(Self, _reserved)),
+        }
+    }
+}
+
+/// Fuzzing entry point, not an API: decodes `bytes` (at most the first [`WireFrame`]'s worth,
+/// zero-filled when shorter) exactly as a receiving node decodes a frame from shared memory, and
+/// for a frame that decodes, checks that sending it again yields the same frame. Returns the
+/// decoded frame.
+#[doc(hidden)]
+pub fn fuzz_decode_wire_frame(bytes: &[u8]) -> Result<CanFrame, String> {
+    let mut raw = [0u8; WIRE_FRAME_LEN];
+    let n = bytes.len().min(WIRE_FRAME_LEN);
+    raw[..n].copy_from_slice(&bytes[..n]);
+    let wire = WireFrame::from_shared_bytes(&raw);
+    let frame = wire.decode()?;
+    let again = WireFrame::encode(&frame, wire.sender_key, wire.seq).decode();
+    if again != Ok(frame) {
+        return Err(format!("{frame:?} re-encodes to {again:?}"));
+    }
+    Ok(frame)
+}
+
 /// Sizes of the bus. Every process on one bus must use the same values: the first node creates
 /// the services with them and later nodes are refused if they ask for more.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -562,6 +605,30 @@ mod tests {
         assert!(wire.decode().unwrap_err().contains("0x800"));
         wire.raw_id = 0xFFFF_FFFF;
         assert!(wire.decode().is_err());
+    }
+
+    #[test]
+    fn shared_memory_bytes_read_back_as_the_frame_that_was_sent() {
+        let frame = CanFrame::new(CanId::Extended(0x1234_5678), &[1, 2, 3, 4, 5]).unwrap();
+        let wire = WireFrame::encode(&frame, 0xABCD, 7);
+        // What the publisher copies into shared memory, byte for byte.
+        let mut bytes = Vec::new();
+        bytes.extend_from_slice(&wire.sent_at_ns.to_ne_bytes());
+        bytes.extend_from_slice(&wire.sender_key.to_ne_bytes());
+        bytes.extend_from_slice(&wire.seq.to_ne_bytes());
+        bytes.extend_from_slice(&wire.raw_id.to_ne_bytes());
+        bytes.push(wire.len);
+        bytes.extend_from_slice(&wire.data);
+        bytes.extend_from_slice(&wire._reserved);
+        assert_eq!(bytes.len(), WIRE_FRAME_LEN);
+        let back = WireFrame::from_shared_bytes(&bytes.clone().try_into().unwrap());
+        assert_eq!((back.sender_key, back.seq), (0xABCD, 7));
+        assert_eq!(fuzz_decode_wire_frame(&bytes), Ok(frame));
+        assert!(fuzz_decode_wire_frame(&[0xFF; WIRE_FRAME_LEN]).is_err());
+        assert_eq!(
+            fuzz_decode_wire_frame(&[]),
+            Ok(CanFrame::new(CanId::Standard(0), &[]).unwrap())
+        );
     }
 
     /// A node with a hand-made publisher: sends wire frames with any sender key and sequence

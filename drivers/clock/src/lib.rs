@@ -58,6 +58,12 @@ pub trait Clock: Send + Sync {
     /// joining, so that its first work is ordered like all later work, whatever the order the
     /// processes started in); the wall clock returns at once.
     fn wait_turn(&self) {}
+
+    /// True for a simulated clock: a loop must then run on its ticks (lock-step determinism)
+    /// rather than wake on events.
+    fn is_simulated(&self) -> bool {
+        false
+    }
 }
 
 /// A clock behind a pointer is that clock.
@@ -81,6 +87,9 @@ macro_rules! forward_clock {
             }
             fn wait_turn(&self) {
                 (**self).wait_turn()
+            }
+            fn is_simulated(&self) -> bool {
+                (**self).is_simulated()
             }
         }
     )*};

@@ -536,6 +536,10 @@ impl Clock for SimClock {
         self.sleep_registered(ns(deadline));
     }
 
+    fn is_simulated(&self) -> bool {
+        true
+    }
+
     fn wait_turn(&self) {
         if self.lost.load(Ordering::Acquire) {
             return;

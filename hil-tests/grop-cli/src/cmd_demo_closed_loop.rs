@@ -211,7 +211,11 @@ fn print_report(report: &WorldReport, wall: Duration, spec_log: Option<&std::pat
                 path.display(),
                 log.messages.len(),
                 std::fs::metadata(path).map(|m| m.len()).unwrap_or(0) as f64 / 1e6,
-                if log.truncated.is_some() { ", cut short" } else { "" },
+                if log.truncated.is_some() {
+                    ", cut short"
+                } else {
+                    ""
+                },
                 path.display()
             ),
             Err(e) => println!("mission log: {e}"),

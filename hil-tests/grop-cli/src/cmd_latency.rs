@@ -60,7 +60,36 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     let results = latency::suite::run(&peer, &config, |step| eprintln!("latency: {step}"))
         .context("running the latency suite")?;
-    let md = latency::report::markdown(&results, &reproduce(&args), None);
+    eprintln!("latency: camera frame to plan (planner node on the wall clock)");
+    let model = crate::common::workspace_path("models/psi-fcn.onnx");
+    let samples = if args.quick {
+        5
+    } else {
+        20 * args.rounds.max(1)
+    };
+    let namespace = format!("latency-pipeline-{}", std::process::id());
+    let mut pipeline = Vec::new();
+    for (i, rt) in [None, Some(args.rt)].into_iter().enumerate() {
+        pipeline.push(
+            latency::pipeline::frame_to_plan(samples, &model, &format!("{namespace}-{i}"), rt)
+                .context("measuring camera frame to plan")?,
+        );
+    }
+    eprintln!("latency: plan to the first motion frame (executive on the wall clock)");
+    let motion = latency::plan_motion::plan_to_motion(
+        if args.quick {
+            3
+        } else {
+            2 * args.rounds.max(1)
+        },
+        &format!("{namespace}-motion"),
+    )
+    .context("measuring plan to motion")?;
+    let md = latency::report::markdown(
+        &results,
+        &reproduce(&args),
+        Some(latency::pipeline::markdown(&pipeline, &motion)),
+    );
     let out = if args.write_docs {
         PathBuf::from("docs/latency.md")
     } else {

@@ -97,3 +97,15 @@ pub fn room_view(scene: &Scene, pixels_per_m: f64, whole_room: bool) -> RoomView
         pixels_per_m,
     )
 }
+
+/// `rel` under the current directory if it is there, else under the workspace this binary was
+/// built from (so commands run from any working directory).
+pub fn workspace_path(rel: &str) -> std::path::PathBuf {
+    let here = std::path::PathBuf::from(rel);
+    if here.exists() {
+        return here;
+    }
+    std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../..")
+        .join(rel)
+}

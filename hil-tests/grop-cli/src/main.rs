@@ -15,6 +15,7 @@ mod cmd_hil;
 mod cmd_latency;
 mod cmd_model_eval;
 mod cmd_render;
+mod cmd_replay;
 mod common;
 
 /// GROP: visually grounded task-and-motion planning for a mobile manipulator setting dinner tables.
@@ -45,6 +46,9 @@ enum Command {
     /// Evaluation tasks in closed loop (world + onboard processes) next to `grop eval`'s
     /// calculation of the same tasks, paired.
     Hil(cmd_hil::Args),
+    /// Re-run the planner and the executive against a mission log's recorded inputs and report
+    /// the first message where they now differ.
+    Replay(cmd_replay::Args),
     /// Latency suite: camera frames across processes, loop jitter, CAN round trip,
     /// allocations; writes out/latency.md (docs/latency.md with --write-docs).
     Latency(cmd_latency::Args),
@@ -61,6 +65,7 @@ fn main() -> std::process::ExitCode {
         Command::Eval(a) => cmd_eval::run(a),
         Command::Bench(a) => cmd_bench::run(a),
         Command::Hil(a) => cmd_hil::run(a),
+        Command::Replay(a) => cmd_replay::run(a),
         Command::Latency(a) => cmd_latency::run(a),
     };
     match result {

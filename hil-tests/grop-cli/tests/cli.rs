@@ -32,6 +32,7 @@ fn demo_runs_the_closed_loop_and_reports_decision_steps_and_latency() {
     let dir = tempfile::tempdir().unwrap();
     let png = dir.path().join("demo.png");
     let run = dir.path().join("run");
+    let log = dir.path().join("demo.mcap");
     let o = grop(&[
         "demo",
         "--model",
@@ -40,6 +41,8 @@ fn demo_runs_the_closed_loop_and_reports_decision_steps_and_latency() {
         png.to_str().unwrap(),
         "--run-dir",
         run.to_str().unwrap(),
+        "--record",
+        log.to_str().unwrap(),
     ]);
     let out = text(&o);
     assert!(o.status.success(), "{out}");
@@ -50,9 +53,11 @@ fn demo_runs_the_closed_loop_and_reports_decision_steps_and_latency() {
         "mission Finished",
         "latency per stage:",
         "perception + planning (wall)",
+        "mission log",
     ] {
         assert!(out.contains(expected), "no {expected:?} in:\n{out}");
     }
+    assert!(std::fs::metadata(&log).is_ok_and(|m| m.len() > 0), "no log at {log:?}");
     let img = image_header(&png);
     assert_eq!(&img[..8], b"\x89PNG\r\n\x1a\n");
     // The run's files: what the processes read and what the world found.
@@ -143,6 +148,7 @@ fn demo_names_a_bad_method_and_a_missing_model() {
         bad.to_str().unwrap(),
         "--run-dir",
         run.to_str().unwrap(),
+        "--no-record",
     ]);
     assert!(!o.status.success());
     let out = text(&o);

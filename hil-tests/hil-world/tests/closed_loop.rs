@@ -5,7 +5,6 @@
 //! The binaries are the ones `cargo test --workspace` (or `cargo build`) put next to this test's
 //! folder.
 
-use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 use hil_world::mission::{self, MissionSpec, RunningMission};
@@ -13,28 +12,8 @@ use hil_world::objects::ObjectState;
 use hil_world::report::{MissionEnd, WorldReport};
 use world::RobotConfig;
 
-fn model() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../models/psi-fcn.onnx")
-}
-
-fn spec(test: &str, seed: u64) -> MissionSpec {
-    let dir = std::env::temp_dir().join(mission::unique_run_name(&format!("grop-{test}")));
-    MissionSpec {
-        dir,
-        scene: world::generate::evaluation_scene(seed, 15, 3),
-        robot: RobotConfig::default(),
-        model: model(),
-        method: "grop".into(),
-        paper_smp: false,
-        retry: "none".into(),
-        seed,
-        pace: None,
-        camera_px: (640, 480),
-        max_sim_s: 400.0,
-        progress_s: 0.1,
-        log: None,
-    }
-}
+mod common;
+use common::spec;
 
 fn start(spec: &MissionSpec) -> RunningMission {
     let bins = mission::binaries(true).expect("the world and onboard binaries build");

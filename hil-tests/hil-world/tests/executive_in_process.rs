@@ -98,6 +98,9 @@ impl Clock for ManualClock {
     fn end_hold(&self) {
         self.holds.fetch_sub(1, Ordering::AcqRel);
     }
+    fn is_simulated(&self) -> bool {
+        true
+    }
 }
 
 /// An arm whose every skill takes `cycles` cycles; closing grips an object.

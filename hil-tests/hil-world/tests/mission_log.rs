@@ -1,7 +1,6 @@
 //! The mission log (MCAP) over the closed loop: what it holds, and that the same mission twice
 //! on the simulated clock logs the same messages at the same simulated times.
 
-use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 use grop_onboard::mission_log::replay::{ReplayOptions, replay};
@@ -10,28 +9,15 @@ use grop_onboard::mission_log::{
 };
 use hil_world::mission::{self, MissionSpec};
 use hil_world::report::MissionEnd;
-use world::RobotConfig;
 
-fn model() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../models/psi-fcn.onnx")
-}
+mod common;
 
 fn logged_spec(test: &str, seed: u64) -> MissionSpec {
-    let dir = std::env::temp_dir().join(mission::unique_run_name(&format!("grop-{test}")));
+    let spec = common::spec(test, seed);
     MissionSpec {
-        log: Some(dir.join("mission.mcap")),
-        dir,
-        scene: world::generate::evaluation_scene(seed, 15, 3),
-        robot: RobotConfig::default(),
-        model: model(),
-        method: "grop".into(),
-        paper_smp: false,
-        retry: "none".into(),
-        seed,
-        pace: None,
-        camera_px: (640, 480),
-        max_sim_s: 400.0,
+        log: Some(spec.dir.join("mission.mcap")),
         progress_s: 0.0,
+        ..spec
     }
 }
 

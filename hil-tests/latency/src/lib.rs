@@ -33,6 +33,8 @@ pub mod jitter;
 pub mod machine;
 pub mod names;
 pub mod peer;
+pub mod pipeline;
+pub mod plan_motion;
 pub mod report;
 pub mod stats;
 pub mod suite;

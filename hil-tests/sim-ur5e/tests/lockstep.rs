@@ -129,9 +129,21 @@ fn each_step_gives_one_package_readable_at_once_with_exact_timestamps() {
     half.start().unwrap();
     let mut pkg = DataPackage::for_recipe(&recipe);
     let mut half_pkg = DataPackage::for_recipe(&half_recipe);
+    // Starting the stream sends the current state at once (cycle 0), as the real controller's
+    // first package follows the start; nothing more comes before the first step.
+    assert!(
+        fast.receive_newest(&mut pkg, Duration::from_secs(1))
+            .unwrap(),
+        "the state at start"
+    );
+    assert_eq!(pkg.values[0], RtdeValue::Double(0.0));
+    assert!(
+        half.receive_newest(&mut half_pkg, Duration::from_secs(1))
+            .unwrap()
+    );
     assert!(
         !fast.receive_newest(&mut pkg, Duration::ZERO).unwrap(),
-        "no package before the first step"
+        "no second package before the first step"
     );
     let period_s = 1.0 / 500.0;
     let (mut fast_count, mut half_count) = (0, 0);

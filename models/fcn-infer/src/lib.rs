@@ -197,7 +197,28 @@ impl FcnModel {
     }
 
     /// Like [`FcnModel::load`] from bytes already in memory; `origin` names them in errors.
+    ///
+    /// Malformed bytes are an error, never a panic: tract's ONNX import indexes and unwraps on
+    /// the graph it reads (a graph output that names no node panicked in `parse_graph`, found by
+    /// fuzzing, `docs/fuzzing.md`), so a panic while reading, checking or preparing the model is
+    /// caught and reported as [`ModelLoadError::Corrupt`].
     pub fn from_bytes(bytes: &[u8], origin: &Path) -> Result<FcnModel, ModelLoadError> {
+        // Nothing outlives a panic: the partly built model is dropped while unwinding.
+        let load = std::panic::AssertUnwindSafe(|| Self::from_bytes_unguarded(bytes, origin));
+        std::panic::catch_unwind(load).unwrap_or_else(|panic| {
+            let message = panic
+                .downcast_ref::<&str>()
+                .map(|s| s.to_string())
+                .or_else(|| panic.downcast_ref::<String>().cloned())
+                .unwrap_or_else(|| "unknown panic".into());
+            Err(ModelLoadError::Corrupt {
+                path: origin.to_path_buf(),
+                reason: format!("the ONNX importer failed on it: {message}"),
+            })
+        })
+    }
+
+    fn from_bytes_unguarded(bytes: &[u8], origin: &Path) -> Result<FcnModel, ModelLoadError> {
         let path = origin.to_path_buf();
         let model = tract_onnx::onnx()
             .model_for_read(&mut &bytes[..])

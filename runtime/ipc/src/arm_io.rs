@@ -57,7 +57,7 @@ pub const ARM_FLAG_EMERGENCY_STOP: u32 = 4;
 pub const ARM_FLAG_CLOSE: u32 = 8;
 
 /// One call on the arm (`arm/io`).
-#[derive(Clone, Copy, Debug, PartialEq, ZeroCopySend)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, ZeroCopySend)]
 #[repr(C)]
 #[type_name("grop_ipc::ArmIoMsg/v1")]
 pub struct ArmIoMsg {
@@ -144,14 +144,9 @@ mod tests {
             seq: 1,
             stamp_ns: 2,
             call: 4,
-            outcome: 0,
             status: ARM_STATUS_DONE,
-            flags: 0,
             robot_mode: 7,
-            reserved: 0,
-            joints_rad: [0.0; 6],
-            joint_speeds_radps: [0.0; 6],
-            flange_pose: [0.0; 6],
+            ..ArmIoMsg::default()
         };
         assert_eq!(m.call(), Ok(ArmCall::Poll));
         assert_eq!(m.outcome(), Ok(ArmOutcome::Ok));

@@ -157,6 +157,22 @@ pub struct CameraFrameMsg {
 }
 
 impl CameraFrameMsg {
+    /// An all-zero frame on the heap (3.5 MiB: never build one on a stack), for a process that
+    /// keeps frames of its own (a recorder's ring, a decoder's buffer).
+    pub fn boxed_zeroed() -> Box<Self> {
+        let layout = std::alloc::Layout::new::<Self>();
+        // SAFETY: the layout is non-zero-sized; all-zero bytes are a valid CameraFrameMsg
+        // (integers, floats and a byte array); a null result goes to the allocation error
+        // handler; the Box takes ownership of memory allocated with its own layout.
+        unsafe {
+            let ptr = std::alloc::alloc_zeroed(layout).cast::<Self>();
+            if ptr.is_null() {
+                std::alloc::handle_alloc_error(layout);
+            }
+            Box::from_raw(ptr)
+        }
+    }
+
     /// The image bytes (`row_stride_bytes * height_px` of them) after checking the header.
     pub fn image(&self) -> Result<&[u8], MessageError> {
         let len = self.header.checked_len()?;
@@ -278,7 +294,7 @@ mod tests {
 
     #[test]
     fn images_are_set_and_read_back() {
-        let mut frame: Box<CameraFrameMsg> = zeroed_frame();
+        let mut frame: Box<CameraFrameMsg> = CameraFrameMsg::boxed_zeroed();
         assert!(frame.image().is_err(), "a zeroed frame has no image");
         let h = header(4, 2, PixelFormat::Rgb8);
         let pixels: Vec<u8> = (0..24).collect();
@@ -291,18 +307,5 @@ mod tests {
         assert_eq!(frame.image().unwrap(), &[7, 7, 7, 7]);
         assert!(frame.image_mut(header(0, 2, PixelFormat::Mono8)).is_err());
         assert_eq!(frame.header.width_px, 2, "a bad header is not stored");
-    }
-
-    fn zeroed_frame() -> Box<CameraFrameMsg> {
-        // 3.5 MiB: build it on the heap, not on the test thread's stack.
-        let layout = std::alloc::Layout::new::<CameraFrameMsg>();
-        // SAFETY: the layout is non-zero-sized; all-zero bytes are a valid CameraFrameMsg
-        // (integers, floats and a byte array), and the Box takes ownership of the allocation
-        // made with the same layout.
-        unsafe {
-            let ptr = std::alloc::alloc_zeroed(layout).cast::<CameraFrameMsg>();
-            assert!(!ptr.is_null());
-            Box::from_raw(ptr)
-        }
     }
 }

@@ -68,7 +68,7 @@ pub use mission::{
 };
 pub use port::{
     IpcNode, NodeError, PortError, PublishError, ReceiveError, Received, TopicPublisher,
-    TopicSubscriber,
+    TopicSubscriber, wait_any,
 };
 
 /// A message type with its service: name and queue sizes. Implemented for the message types of

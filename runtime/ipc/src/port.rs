@@ -379,6 +379,42 @@ impl<T: Topic> TopicPublisher<T> {
     }
 }
 
+/// Sleeps until one of the topics behind `wake_fds` ([`TopicSubscriber::wake_fd`]) has a new
+/// message, or `timeout` has passed (ppoll: no rounding to scheduler ticks).
+pub fn wait_any(wake_fds: &[i32], timeout: Duration) -> std::io::Result<()> {
+    let mut fds = [libc::pollfd {
+        fd: -1,
+        events: libc::POLLIN,
+        revents: 0,
+    }; 8];
+    let n = wake_fds.len().min(fds.len());
+    for (slot, fd) in fds.iter_mut().zip(wake_fds) {
+        slot.fd = *fd;
+    }
+    let timeout = libc::timespec {
+        tv_sec: libc::time_t::try_from(timeout.as_secs()).unwrap_or(libc::time_t::MAX),
+        // Below 1e9, so it fits a c_long on every target.
+        tv_nsec: timeout.subsec_nanos() as libc::c_long,
+    };
+    // SAFETY: `n` valid pollfds (at most 8, the array's length), a valid timespec, no signal
+    // mask change.
+    let status = unsafe {
+        libc::ppoll(
+            fds.as_mut_ptr(),
+            n as libc::nfds_t,
+            &timeout,
+            std::ptr::null(),
+        )
+    };
+    if status < 0 {
+        let error = std::io::Error::last_os_error();
+        if error.kind() != std::io::ErrorKind::Interrupted {
+            return Err(error);
+        }
+    }
+    Ok(())
+}
+
 /// A received message, read in place in shared memory (dereferences to `T`).
 pub struct Received<T: Topic> {
     sample: Sample<Ipc, T, ()>,
@@ -474,6 +510,21 @@ impl<T: Topic> TopicSubscriber<T> {
             wait_readable(self.listener_fd, remaining)
                 .map_err(|e| self.error(format!("waiting for a wake-up: {e}")))?;
         }
+    }
+
+    /// Clears the topic's pending wake-ups: a message published after this call comes with a
+    /// new one, so a caller that clears, reads everything, then waits on [`wait_any`] misses
+    /// nothing and never spins.
+    pub fn clear_wakeups(&self) -> Result<(), ReceiveError> {
+        self.listener
+            .try_wait(|_| {})
+            .map(|_| ())
+            .map_err(|e| self.error(format!("{e:?}")))
+    }
+
+    /// The descriptor that becomes readable when a message is published (for [`wait_any`]).
+    pub fn wake_fd(&self) -> i32 {
+        self.listener_fd
     }
 
     /// Full service name.

@@ -282,21 +282,39 @@ impl PlannerNode {
     /// missed cycles are skipped and counted as overruns).
     pub fn run(&mut self, clock: &dyn Clock, stop: &AtomicBool) -> Result<(), PlannerNodeError> {
         clock.wait_turn();
+        // On the wall clock the node also wakes the moment a frame or a request arrives (the
+        // frame-to-plan latency is then the decision, not the loop's phase); on a simulated
+        // clock it runs on its ticks only, which is what makes a mission repeatable.
+        let event_driven = !clock.is_simulated();
         let mut next = clock.now();
         while !stop.load(Ordering::Relaxed) {
             if clock.is_lost() {
                 log::warn!("the clock is lost; the planner node stops");
                 break;
             }
+            if event_driven {
+                self.frames.clear_wakeups()?;
+                self.requests.clear_wakeups()?;
+            }
             let now = clock.now();
             self.step(now)?;
-            next += CYCLE;
             let after = clock.now();
-            while next <= after {
+            if after >= next {
                 next += CYCLE;
-                self.overruns += 1;
+                while next <= after {
+                    next += CYCLE;
+                    self.overruns += 1;
+                }
             }
-            clock.sleep_until(next);
+            if event_driven {
+                let fds = [self.frames.wake_fd(), self.requests.wake_fd()];
+                if let Err(e) = grop_ipc::wait_any(&fds, next.saturating_sub(clock.now())) {
+                    log::warn!("waiting for frames and requests: {e}; sleeping instead");
+                    clock.sleep_until(next);
+                }
+            } else {
+                clock.sleep_until(next);
+            }
         }
         Ok(())
     }

@@ -42,9 +42,30 @@ pub struct DeploymentArgs {
     /// Clock instead of the deployment's: `wall` or `sim:<name>`.
     #[arg(long)]
     pub clock: Option<String>,
+    /// Real-time settings of the process: `off`, `on` (memory locked and pre-faulted, timer
+    /// slack 1 ns, SCHED_FIFO 50), or a list such as `fifo=80,cpu=1,lock,slack=1`
+    /// (docs/runtime.md, "Real time"). What the system refuses is reported, not fatal.
+    #[arg(long, default_value = "off")]
+    pub rt: grop_clock::rt::RtSettings,
 }
 
 impl DeploymentArgs {
+    /// Applies `--rt` to this process (before its loops start) and logs what was applied and
+    /// what the system refused, and why.
+    pub fn apply_rt(&self, process: &str) {
+        if self.rt.is_off() {
+            return;
+        }
+        let report = grop_clock::rt::apply(&self.rt);
+        if report.all_applied() {
+            log::info!("{process}: real-time settings applied: {}", self.rt);
+        } else {
+            for line in report.to_string().lines() {
+                log::warn!("{process}: {line}");
+            }
+        }
+    }
+
     /// The deployment these options name, overrides applied and validated.
     pub fn load(&self) -> anyhow::Result<Deployment> {
         load_deployment(&self.deployment, self.namespace.clone(), self.clock.clone())

@@ -357,6 +357,10 @@ impl grop_clock::Clock for JumpClock {
             self.stop.store(true, Ordering::SeqCst);
         }
     }
+    fn is_simulated(&self) -> bool {
+        // Time moves only by sleep_until: the node must run on its ticks, not wait for events.
+        true
+    }
 }
 
 /// The loop on a simulated clock: one heartbeat per 100 ms of clock time, role Planner.

@@ -40,6 +40,7 @@ fn main() -> anyhow::Result<()> {
     let args = Args::parse();
     let deployment = args.deployment.load()?;
     let stop = grop_onboard::process::stop_flag()?;
+    args.deployment.apply_rt("grop-executive");
     let scene = world::Scene::load(&deployment.map)
         .with_context(|| format!("the map {}", deployment.map.display()))?;
     let robot = deployment.load_robot().context("the robot file")?;
@@ -107,6 +108,7 @@ fn main() -> anyhow::Result<()> {
     );
     let state = executive.run(&|| !stop.load(Ordering::Relaxed), args.exit_when_done);
     let stats = executive.stats();
+    log::info!("grop-executive: minor cycle {}", executive.loop_summary());
     log::info!(
         "grop-executive: {state:?}; {} cycles, {} overruns, {} unloads ok, {} failed",
         stats.cycles,

@@ -23,6 +23,7 @@ fn main() -> anyhow::Result<()> {
     let args = Args::parse();
     let deployment = args.deployment.load()?;
     let stop = grop_onboard::process::stop_flag()?;
+    args.deployment.apply_rt("grop-planner");
     log::info!(
         "grop-planner: deployment {}, namespace `{}`, clock {}, map {}, model {}",
         args.deployment.deployment.display(),

@@ -61,6 +61,7 @@ fn main() -> anyhow::Result<()> {
     );
     let deployment = args.deployment.load()?;
     let stop = grop_onboard::process::stop_flag()?;
+    args.deployment.apply_rt("grop-recorder");
     let simulated = deployment.clock != "wall";
     let bus: Box<dyn CanBus + Send> = match &deployment.can {
         CanSpec::Virtual { bus } => Box::new(

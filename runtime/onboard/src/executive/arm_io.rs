@@ -48,9 +48,10 @@ pub fn put_snapshot(m: &mut ArmIoMsg, s: &ArmSnapshot) {
     m.joint_speeds_radps = s.qd_radps;
     m.flange_pose = s.flange_pose;
     m.robot_mode = s.robot_mode;
-    m.flags = u32::from(s.program_running) * ARM_FLAG_PROGRAM_RUNNING
-        | u32::from(s.protective_stop) * ARM_FLAG_PROTECTIVE_STOP
-        | u32::from(s.emergency_stop) * ARM_FLAG_EMERGENCY_STOP;
+    let flag = |on: bool, bit: u32| if on { bit } else { 0 };
+    m.flags = flag(s.program_running, ARM_FLAG_PROGRAM_RUNNING)
+        | flag(s.protective_stop, ARM_FLAG_PROTECTIVE_STOP)
+        | flag(s.emergency_stop, ARM_FLAG_EMERGENCY_STOP);
 }
 
 /// The answer of an `update` recorded in `m`.
@@ -208,24 +209,8 @@ mod tests {
             protective_stop: false,
             emergency_stop: true,
         };
-        let mut m: ArmIoMsg = zeroed();
+        let mut m = ArmIoMsg::default();
         put_snapshot(&mut m, &snap);
         assert_eq!(snapshot_of(&m), snap);
-    }
-
-    fn zeroed() -> ArmIoMsg {
-        ArmIoMsg {
-            seq: 0,
-            stamp_ns: 0,
-            call: 0,
-            outcome: 0,
-            status: 0,
-            flags: 0,
-            robot_mode: 0,
-            reserved: 0,
-            joints_rad: [0.0; 6],
-            joint_speeds_radps: [0.0; 6],
-            flange_pose: [0.0; 6],
-        }
     }
 }

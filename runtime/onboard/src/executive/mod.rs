@@ -312,6 +312,8 @@ pub struct Executive<B: CanBus, A: ArmDevice> {
     heartbeat_seq: u64,
     next_heartbeat: Duration,
     stats: ExecutiveStats,
+    /// Wake-up lateness of the minor cycle (allocation-free histogram).
+    loop_stats: grop_clock::rt::LoopStats,
 }
 
 /// Writes a short event text without allocating.
@@ -396,6 +398,7 @@ impl<B: CanBus, A: ArmDevice> Executive<B, A> {
             (1u64 << objects) - 1
         };
         let follower = PathFollower::new(config.follower);
+        let config_cycle = config.cycle;
         Ok(Self {
             localiser: Localiser::new(config.localiser),
             follower,
@@ -435,6 +438,7 @@ impl<B: CanBus, A: ArmDevice> Executive<B, A> {
             heartbeat_seq: 0,
             next_heartbeat: Duration::ZERO,
             stats: ExecutiveStats::default(),
+            loop_stats: grop_clock::rt::LoopStats::new(config_cycle),
         })
     }
 
@@ -446,6 +450,11 @@ impl<B: CanBus, A: ArmDevice> Executive<B, A> {
     /// Counters.
     pub fn stats(&self) -> ExecutiveStats {
         self.stats
+    }
+
+    /// How late the minor cycle woke (p50 / p99 / max) and its overruns.
+    pub fn loop_summary(&self) -> grop_clock::rt::LoopSummary {
+        self.loop_stats.summary()
     }
 
     /// The base driver (tests inspect it).
@@ -492,6 +501,7 @@ impl<B: CanBus, A: ArmDevice> Executive<B, A> {
                 }
             }
             self.clock.sleep_until(deadline);
+            self.loop_stats.record(deadline, self.clock.now());
         }
     }
 

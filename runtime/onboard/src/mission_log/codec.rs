@@ -772,7 +772,7 @@ mod tests {
             reserved: 0,
             joints_rad: [0.1, -1.2, 2.3, -0.4, 1.5e-7, 6.0],
             joint_speeds_radps: [0.0; 6],
-            flange_pose: [0.3, 0.2, 0.1, 0.0, 3.14, 0.0],
+            flange_pose: [0.3, 0.2, 0.1, 0.0, 3.0, 0.0],
         };
         assert_eq!(decode_arm_io(&encode_arm_io(&io)).ok(), Some(io));
         let mut bad = io;
@@ -782,7 +782,7 @@ mod tests {
 
     #[test]
     fn camera_frames_round_trip_and_bad_ones_are_named() {
-        let mut frame: Box<CameraFrameMsg> = zeroed_frame();
+        let mut frame: Box<CameraFrameMsg> = CameraFrameMsg::boxed_zeroed();
         let mut header = CameraFrameHeader {
             frame_id: 7,
             stamp_ns: 1_500_000_000,
@@ -799,7 +799,7 @@ mod tests {
         frame.set_image(header, &pixels).unwrap();
         let data = encode_camera(&frame);
         assert_eq!(camera_frame_id(&data).unwrap(), 7);
-        let mut back = zeroed_frame();
+        let mut back = CameraFrameMsg::boxed_zeroed();
         decode_camera_into(&data, &mut back).unwrap();
         assert_eq!(back.header, frame.header);
         assert_eq!(back.image().unwrap(), frame.image().unwrap());
@@ -809,17 +809,5 @@ mod tests {
             .replace("\"rgb8\"", "\"bgr16\"");
         let err = decode_camera_into(text.as_bytes(), &mut back).unwrap_err();
         assert!(err.to_string().contains("bgr16"), "{err}");
-    }
-
-    fn zeroed_frame() -> Box<CameraFrameMsg> {
-        let layout = std::alloc::Layout::new::<CameraFrameMsg>();
-        // SAFETY: CameraFrameMsg is plain data for which all-zero bytes are valid (the ipc
-        // crate's Topic contract); the box takes ownership of a fresh zeroed allocation of
-        // exactly its layout.
-        unsafe {
-            let ptr = std::alloc::alloc_zeroed(layout).cast::<CameraFrameMsg>();
-            assert!(!ptr.is_null());
-            Box::from_raw(ptr)
-        }
     }
 }

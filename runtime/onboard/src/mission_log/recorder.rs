@@ -72,19 +72,6 @@ fn port(e: impl std::fmt::Display) -> LogError {
     LogError::Source(e.to_string())
 }
 
-fn zeroed_frame() -> Box<CameraFrameMsg> {
-    let layout = std::alloc::Layout::new::<CameraFrameMsg>();
-    // SAFETY: CameraFrameMsg is plain data for which all-zero bytes are a valid value (the ipc
-    // crate's Topic contract); the box owns a fresh zeroed allocation of exactly its layout.
-    unsafe {
-        let ptr = std::alloc::alloc_zeroed(layout).cast::<CameraFrameMsg>();
-        if ptr.is_null() {
-            std::alloc::handle_alloc_error(layout);
-        }
-        Box::from_raw(ptr)
-    }
-}
-
 impl Recorder {
     /// Subscribes to every topic in `node`'s namespace (and listens on `bus`, if given).
     pub fn new(
@@ -327,7 +314,7 @@ impl Recorder {
                 frame_id: 0,
                 log_time: 0,
                 stamp: 0,
-                msg: zeroed_frame(),
+                msg: CameraFrameMsg::boxed_zeroed(),
             });
             held.frame_id = frame.header.frame_id;
             held.log_time = now_ns;
