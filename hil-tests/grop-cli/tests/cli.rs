@@ -57,7 +57,10 @@ fn demo_runs_the_closed_loop_and_reports_decision_steps_and_latency() {
     ] {
         assert!(out.contains(expected), "no {expected:?} in:\n{out}");
     }
-    assert!(std::fs::metadata(&log).is_ok_and(|m| m.len() > 0), "no log at {log:?}");
+    assert!(
+        std::fs::metadata(&log).is_ok_and(|m| m.len() > 0),
+        "no log at {log:?}"
+    );
     let img = image_header(&png);
     assert_eq!(&img[..8], b"\x89PNG\r\n\x1a\n");
     // The run's files: what the processes read and what the world found.
