@@ -22,13 +22,11 @@ use std::time::Duration;
 
 use can_bus::{CanBus, CanFrame, CanId, MemoryBus, VirtualCanBus};
 use grop_clock::rt::LoopStats;
-use grop_ipc::CameraFrameMsg;
 use iceoryx2::prelude::*;
 use motion_control::Twist;
 use rmp_base::{BaseMode, CanLink, RmpBase, RmpBaseConfig};
 use sim_rmp::{SimConfig, SimRmp, SimRmpNode};
 
-use crate::camera::FrameTimes;
 use crate::peer::{Peer, field};
 use crate::{BenchError, names};
 
@@ -377,19 +375,8 @@ fn camera_frames(cycles: usize, warmup: usize) -> Result<(), BenchError> {
         .create::<ipc::Service>()
         .map_err(|e| BenchError::setup("creating the iceoryx2 node")(&e))?;
     let service = names::unique("alloc-cam");
-    let name = ServiceName::new(&service).map_err(|e| BenchError::setup("service name")(&e))?;
-    let frames = node
-        .service_builder(&name)
-        .publish_subscribe::<CameraFrameMsg>()
-        .user_header::<FrameTimes>()
-        .max_publishers(1)
-        .max_subscribers(1)
-        .history_size(0)
-        .subscriber_max_buffer_size(1)
-        .subscriber_max_borrowed_samples(1)
-        .enable_safe_overflow(true)
-        .open_or_create()
-        .map_err(|e| BenchError::setup("opening the camera service")(&e))?;
+    // The same service settings as the frame-latency measurement.
+    let (frames, _wake) = crate::camera::open_service(&node, &service)?;
     let publisher = frames
         .publisher_builder()
         .max_loaned_samples(1)

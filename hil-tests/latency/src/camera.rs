@@ -56,12 +56,12 @@ pub const STREAM_FRAME_BYTES: usize = TIMES_BYTES + HEADER_BYTES + IMAGE_BYTES;
 const FRAME_TIMEOUT: Duration = Duration::from_secs(5);
 
 type Ipc = ipc::Service;
-type FrameService = iceoryx2::service::port_factory::publish_subscribe::PortFactory<
+pub(crate) type FrameService = iceoryx2::service::port_factory::publish_subscribe::PortFactory<
     Ipc,
     CameraFrameMsg,
     FrameTimes,
 >;
-type WakeService = iceoryx2::service::port_factory::event::PortFactory<Ipc>;
+pub(crate) type WakeService = iceoryx2::service::port_factory::event::PortFactory<Ipc>;
 
 /// Send times carried next to the frame (an iceoryx2 user header; the first 24 bytes of a
 /// socket frame).
@@ -323,7 +323,7 @@ fn times_from(bytes: &[u8]) -> FrameTimes {
 
 /// The iceoryx2 service of the raw path: one publisher, one subscriber, nothing buffered
 /// beyond one frame, so the publisher owns 3 samples of 3.5 MiB.
-fn open_service(
+pub(crate) fn open_service(
     node: &Node<Ipc>,
     service: &str,
 ) -> Result<(FrameService, WakeService), BenchError> {
