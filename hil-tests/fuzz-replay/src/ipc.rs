@@ -6,10 +6,10 @@ use std::alloc::{Layout, alloc_zeroed};
 use std::cell::RefCell;
 
 use grop_ipc::{
-    ArmStateMsg, BasePoseMsg, BaseStateMsg, CAMERA_MAX_BYTES, CameraFrameHeader, CameraFrameMsg,
-    EVENT_DETAIL_CAPACITY, EventMsg, HeartbeatMsg, HeatmapsMsg, MAX_HEATMAPS, MAX_PLAN_STEPS,
-    MAX_TASK_STEPS, OVERHEAD_MAX_HEIGHT_PX, OVERHEAD_MAX_WIDTH_PX, OverheadFrame, PlanMsg,
-    PlanStep, ReplanRequestMsg, TaskPlanMsg, TaskStep, Topic,
+    ArmIoMsg, ArmStateMsg, BasePoseMsg, BaseStateMsg, CAMERA_MAX_BYTES, CameraFrameHeader,
+    CameraFrameMsg, EVENT_DETAIL_CAPACITY, EventMsg, HeartbeatMsg, HeatmapsMsg, MAX_HEATMAPS,
+    MAX_PLAN_STEPS, MAX_TASK_STEPS, OVERHEAD_MAX_HEIGHT_PX, OVERHEAD_MAX_WIDTH_PX, OverheadFrame,
+    PlanMsg, PlanStep, ReplanRequestMsg, TaskPlanMsg, TaskStep, Topic,
 };
 use world::camera::{FrameLayout, OverheadCamera, PixelFormat, cut_view};
 use world::view::{CROP_COLS, CROP_ROWS, Side};
@@ -50,6 +50,8 @@ unsafe impl AnyBitPattern for HeartbeatMsg {}
 unsafe impl AnyBitPattern for CameraFrameMsg {}
 // SAFETY: as above.
 unsafe impl AnyBitPattern for CameraFrameHeader {}
+// SAFETY: as above.
+unsafe impl AnyBitPattern for ArmIoMsg {}
 // SAFETY: as above.
 unsafe impl AnyBitPattern for PlanStep {}
 // SAFETY: as above.
@@ -135,14 +137,14 @@ fn bytes_of<T: AnyBitPattern>(msg: &T) -> Vec<u8> {
     unsafe { std::slice::from_raw_parts((msg as *const T).cast::<u8>(), size_of::<T>()) }.to_vec()
 }
 
-/// A valid message of the type [`ipc_messages`] selects with `which` (0..=10), as bytes; the
+/// A valid message of the type [`ipc_messages`] selects with `which` (0..=11), as bytes; the
 /// large ones cut after their meaningful part (the rest reads as zeros).
 pub(crate) fn bytes_of_message(which: u8) -> Vec<u8> {
     use grop_ipc::{
         ArmSafety, BaseMode, EventKind, OverheadFrameHeader, PixelFormat as IpcFormat, PoseFixKind,
         ProcessRole, ReplanReason, TableSide, TaskStep,
     };
-    let mut bytes = match which % 11 {
+    let mut bytes = match which % 12 {
         0 => {
             let mut msg = zeroed::<OverheadFrame>();
             let header = OverheadFrameHeader {
@@ -236,6 +238,14 @@ pub(crate) fn bytes_of_message(which: u8) -> Vec<u8> {
             msg.set_role(ProcessRole::Executive);
             bytes_of(&*msg)
         }
+        11 => {
+            let mut msg = zeroed::<ArmIoMsg>();
+            msg.seq = 12;
+            msg.call = grop_ipc::ArmCall::StartMoveJoints as u32;
+            msg.outcome = grop_ipc::ArmOutcome::Ok as u32;
+            msg.joints_rad = [0.0, -1.57, 1.57, -1.57, -1.57, 0.0];
+            bytes_of(&*msg)
+        }
         _ => {
             let mut msg = zeroed::<CameraFrameMsg>();
             let mut header = *zeroed::<CameraFrameHeader>();
@@ -255,14 +265,14 @@ pub(crate) fn bytes_of_message(which: u8) -> Vec<u8> {
     bytes
 }
 
-/// First byte: which message type; the rest: its bytes (zero-filled to the type's size). Every
+/// First byte: which message type (12 of them); the rest: its bytes (zero-filled to the type's size). Every
 /// checked accessor either errors or returns what the raw fields say, within the capacities;
 /// values that check, written back through the setters, read back the same.
 pub fn ipc_messages(data: &[u8]) {
     let Some((&which, bytes)) = data.split_first() else {
         return;
     };
-    match which % 11 {
+    match which % 12 {
         0 => overhead_frame(bytes),
         1 => plan(bytes),
         2 => base_state(bytes),
@@ -273,7 +283,8 @@ pub fn ipc_messages(data: &[u8]) {
         7 => heatmaps(bytes),
         8 => base_pose(bytes),
         9 => heartbeat(bytes),
-        _ => camera_message(bytes),
+        10 => camera_message(bytes),
+        _ => arm_io(bytes),
     }
 }
 
@@ -482,6 +493,23 @@ fn check_heartbeat(msg: &HeartbeatMsg) {
         copy.set_role(role);
         assert_eq!(raw(&copy), raw(msg));
     }
+}
+
+fn arm_io(bytes: &[u8]) {
+    with_message::<ArmIoMsg, _>(bytes, check_arm_io);
+}
+
+fn check_arm_io(msg: &ArmIoMsg) {
+    let _ = msg.stamp_ns();
+    let _ = msg.call().map_err(|e| e.to_string());
+    let _ = msg.outcome().map_err(|e| e.to_string());
+    let finite = msg
+        .joints_rad
+        .iter()
+        .chain(&msg.joint_speeds_radps)
+        .chain(&msg.flange_pose)
+        .all(|v| v.is_finite());
+    assert_eq!(msg.is_finite(), finite);
 }
 
 fn camera_message(bytes: &[u8]) {

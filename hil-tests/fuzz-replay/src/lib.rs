@@ -60,7 +60,7 @@ pub use ipc::{camera_frame, ipc_messages};
 #[cfg(feature = "model")]
 pub use model::model_loader;
 #[cfg(feature = "onboard")]
-pub use onboard::deployment_file;
+pub use onboard::{deployment_file, mission_log};
 pub use rmp::{rmp_feedback, rmp_gen1, rmp_packet, rmp_v3};
 #[cfg(feature = "ur5e")]
 pub use rtde::{rtde_client, rtde_wire};
@@ -102,7 +102,10 @@ pub fn targets() -> Vec<Target> {
         ("robot_file", robot_file),
     ]);
     #[cfg(feature = "onboard")]
-    all.push(("deployment_file", deployment_file));
+    all.extend([
+        ("deployment_file", deployment_file as fn(&[u8])),
+        ("mission_log", mission_log),
+    ]);
     #[cfg(feature = "ipc")]
     all.extend([
         ("ipc_messages", ipc_messages as fn(&[u8])),

@@ -436,8 +436,93 @@ fn deployment_file() -> Vec<Vec<u8>> {
     ]
 }
 
+/// Logged messages of the channels with a decoder, as the recorder encodes them.
+fn logged_messages() -> Vec<(grop_onboard::mission_log::Channel, Vec<u8>)> {
+    use grop_ipc::{ArmIoMsg, BasePoseMsg, CameraFrameMsg, EventKind, EventMsg, HeartbeatMsg};
+    use grop_onboard::mission_log::{Channel, codec};
+    let mut out = Vec::new();
+    let fix = BasePoseMsg::fix(
+        3,
+        123_456_789,
+        grop_ipc::PoseFixKind::Global,
+        [0.1, 2.0, 1.5],
+        0.05,
+        0.01,
+    );
+    out.push((Channel::BasePose, codec::encode_base_pose(&fix)));
+    let io = ArmIoMsg {
+        call: grop_ipc::ArmCall::Poll as u32,
+        status: grop_ipc::ARM_STATUS_RUNNING,
+        joints_rad: [0.0, -1.57, 1.57, -1.57, -1.57, 0.5],
+        ..ArmIoMsg::default()
+    };
+    out.push((Channel::ArmIo, codec::encode_arm_io(&io)));
+    let event = EventMsg::new(EventKind::GoalReached, 42, "goal 2 reached");
+    out.push((Channel::Events, codec::encode_event(&event)));
+    let beat = HeartbeatMsg {
+        seq: 7,
+        stamp_ns: 9_000,
+        role: 2,
+        pid: 0,
+        overruns: 1,
+    };
+    out.push((Channel::Health, codec::encode_health(&beat)));
+    if let Ok(f) = can_bus::CanFrame::new(
+        can_bus::CanId::Standard(0x500),
+        &[0x3F, 0, 0, 0, 0, 0, 0, 0],
+    ) {
+        out.push((Channel::Can, codec::encode_can(&f)));
+    }
+    let mut frame = CameraFrameMsg::boxed_zeroed();
+    let mut header = frame.header;
+    header.frame_id = 5;
+    header.width_px = 4;
+    header.height_px = 2;
+    header.set_pixel_format(grop_ipc::PixelFormat::Mono8);
+    header.row_stride_bytes = 4;
+    header.metres_per_px = 0.5;
+    let _ = frame.set_image(header, &[0, 50, 100, 150, 200, 250, 255, 1]);
+    out.push((Channel::CameraFrame, codec::encode_camera(&frame)));
+    out
+}
+
+fn mission_log() -> Vec<Vec<u8>> {
+    use grop_onboard::mission_log::{Channel, LogWriter, WriterConfig};
+    let messages = logged_messages();
+    let mut seeds: Vec<Vec<u8>> = messages
+        .iter()
+        .map(|(channel, json)| {
+            let index = Channel::ALL.iter().position(|c| c == channel).unwrap_or(0);
+            let mut seed = vec![1u8, index as u8];
+            seed.extend_from_slice(json);
+            seed
+        })
+        .collect();
+    // A whole log, as the recorder writes it.
+    let path = std::env::temp_dir().join(format!("grop-seed-log-{}.mcap", std::process::id()));
+    let mut metadata = std::collections::BTreeMap::new();
+    metadata.insert(
+        "grop.mission".to_owned(),
+        [("seed".to_owned(), "1".to_owned())].into_iter().collect(),
+    );
+    if let Ok(writer) = LogWriter::create(&path, metadata, WriterConfig::default()) {
+        for (k, (channel, json)) in messages.iter().enumerate() {
+            writer.push(*channel, k as u64 * 1000, k as u64 * 1000, json.clone());
+        }
+        if writer.finish().is_ok()
+            && let Ok(bytes) = std::fs::read(&path)
+        {
+            let mut seed = vec![0u8];
+            seed.extend(bytes);
+            seeds.push(seed);
+        }
+    }
+    let _ = std::fs::remove_file(&path);
+    seeds
+}
+
 fn ipc_messages() -> Vec<Vec<u8>> {
-    (0..11u8)
+    (0..12u8)
         .map(|which| {
             let mut out = vec![which];
             out.extend(bytes_of_message(which));
@@ -507,6 +592,7 @@ pub fn seeds() -> Vec<(&'static str, Vec<Vec<u8>>)> {
         ("scene_file", scene_file()),
         ("robot_file", robot_file()),
         ("deployment_file", deployment_file()),
+        ("mission_log", mission_log()),
         ("ipc_messages", ipc_messages()),
         ("camera_frame", camera_frame()),
         ("model_loader", model_loader()),

@@ -136,6 +136,15 @@ fn seeds_are_valid_inputs() {
     for seed in of("rmp_packet") {
         assert!(rmp_codec::packet::decode_command(&seed).is_ok());
     }
+    for seed in of("mission_log") {
+        if seed[0] == 0 {
+            let log = grop_onboard::mission_log::MissionLog::from_bytes(
+                &seed[1..],
+                Path::new("seed.mcap"),
+            );
+            assert!(log.is_ok_and(|l| l.messages.len() == 6 && l.truncated.is_none()));
+        }
+    }
     let models = of("model_loader");
     for model in [&models[0], &models[5]] {
         let loaded = fcn_infer::FcnModel::from_bytes(model, Path::new("seed.onnx"));
