@@ -346,6 +346,22 @@ impl SimClockHost {
         self.wait_not_running(None);
     }
 
+    /// Fault injection: time jumps to `target` at once (a stalled machine, a suspended VM).
+    /// Unlike [`advance_to`](Self::advance_to), nobody runs at the instants in between: every
+    /// participant whose wake time passed wakes at `target`, late. No-op if `target` is not
+    /// later than now.
+    pub fn jump_to(&mut self, target: Duration) {
+        self.wait_not_running(None);
+        let target_ns = ns(target);
+        if target_ns <= self.shared().now_ns.load(Ordering::Acquire) {
+            return;
+        }
+        self.shared().now_ns.store(target_ns, Ordering::Release);
+        // The pace origin moves with the jump: no catching up in wall time afterwards.
+        self.pace_origin = None;
+        self.advance_to(target);
+    }
+
     /// Moves simulated time forward to `target`: waits until every participant sleeps, steps to
     /// each earlier wake time in turn and runs the participants due then (one at a time, lowest
     /// rank first), and ends with time at `target` and every participant asleep. Participants

@@ -13,7 +13,8 @@ use rmp_codec::feedback::{
     FeedbackSet,
 };
 use rmp_codec::v3::{
-    ConfigCommand, FirmwareProfile, ModeRequest, MotionCommand, NvmFloat, OperationalState,
+    CONFIG_ID, ConfigCommand, FirmwareProfile, MOTION_ID, ModeRequest, MotionCommand, NvmFloat,
+    OperationalState,
 };
 
 use crate::link::{LinkError, RmpLink};
@@ -310,6 +311,20 @@ pub enum BaseError {
         /// Commanded yaw envelope plus tolerance, rad/s.
         allowed_yaw_radps: f32,
     },
+    /// Another host sends motion (0x500) or configuration (0x501) commands on the bus: the
+    /// base obeys whichever command came last, so nobody is in control. The driver commands
+    /// zero and stays disarmed until [`RmpBase::rearm`]; re-reported every tick until then.
+    /// (A host never receives its own frames: SocketCAN does not loop them back to the
+    /// sending socket, nor does the virtual bus.)
+    #[error(
+        "a second commander on the RMP bus: {frames} command frames not sent by this driver (last id {last_id:#05x}); stopped until re-armed"
+    )]
+    SecondCommander {
+        /// Foreign command frames seen since start.
+        frames: u64,
+        /// Id of the last one.
+        last_id: u16,
+    },
     /// The link refused a frame.
     #[error("RMP link: {0}")]
     Link(#[from] LinkError),
@@ -338,6 +353,9 @@ pub enum DisarmCause {
         /// Commanded yaw envelope plus tolerance, rad/s.
         allowed_yaw_radps: f32,
     },
+    /// Another host sends motion or configuration commands on the bus
+    /// ([`BaseError::SecondCommander`]).
+    SecondCommander,
 }
 
 fn describe(faults: &FaultStatus) -> String {
@@ -431,6 +449,10 @@ pub struct RmpBase<L> {
     /// than the limiter's deceleration (speed, yaw rate).
     envelope: (f32, f32),
     low_limit_warned: bool,
+    /// Command frames (0x500/0x501) received from another host, and the last one's id.
+    foreign_commands: (u64, u16),
+    /// Foreign commands seen since the last tick.
+    foreign_this_tick: bool,
 }
 
 fn us(d: Duration) -> u64 {
@@ -459,6 +481,8 @@ impl<L: RmpLink> RmpBase<L> {
             started_at: None,
             running_since: Duration::ZERO,
             last_heard: None,
+            foreign_commands: (0, 0),
+            foreign_this_tick: false,
             forced_echo: None,
             config_rounds: 0,
             last_tick: None,
@@ -569,8 +593,15 @@ impl<L: RmpLink> RmpBase<L> {
     pub fn tick(&mut self, now: Duration) -> Result<Tick, BaseError> {
         let started_at = *self.started_at.get_or_insert(now);
         let period = self.config.command_period;
+        // Our own loop stalled longer than the base waits for us: the base has stopped on its
+        // own loss-of-command timeout (or is about to), and anything it reported before the
+        // gap is stale. That is a lost link, whoever caused it.
+        let gap = self
+            .last_tick
+            .map_or(Duration::ZERO, |t| now.saturating_sub(t));
+        let stalled = gap > self.config.response_timeout;
         let dt = match self.last_tick {
-            Some(t) => now.saturating_sub(t).min(4 * period),
+            Some(_) => gap.min(4 * period),
             None => period,
         };
         self.last_tick = Some(now);
@@ -670,7 +701,11 @@ impl<L: RmpLink> RmpBase<L> {
 
         // Silent: no feedback frame at all. Unreadable: frames, but no complete readable set.
         let heard_for = now.saturating_sub(self.last_heard.unwrap_or(started_at));
-        let base_silent = heard_for > self.config.response_timeout;
+        let (base_silent, heard_for) = if stalled && self.startup == Startup::Running {
+            (true, gap)
+        } else {
+            (heard_for > self.config.response_timeout, heard_for)
+        };
         let unread_for =
             now.saturating_sub(self.status.last_feedback.unwrap_or(self.running_since));
         let unreadable = !base_silent
@@ -682,6 +717,9 @@ impl<L: RmpLink> RmpBase<L> {
         // answers, drives, and reports no stopping fault.
         let input_stale = self.input_watchdog.is_stale(us(now));
         let faulted = self.status.faults.stops_motion();
+        if std::mem::take(&mut self.foreign_this_tick) {
+            self.disarm(DisarmCause::SecondCommander);
+        }
         if faulted {
             self.disarm(DisarmCause::Faulted {
                 faults: self.status.faults,
@@ -765,6 +803,12 @@ impl<L: RmpLink> RmpBase<L> {
                 faults: self.status.faults,
             });
         }
+        if self.disarmed == Some(DisarmCause::SecondCommander) {
+            return Err(BaseError::SecondCommander {
+                frames: self.foreign_commands.0,
+                last_id: self.foreign_commands.1,
+            });
+        }
         if let Some(DisarmCause::Overspeed {
             measured_mps,
             allowed_mps,
@@ -818,8 +862,15 @@ impl<L: RmpLink> RmpBase<L> {
                     break;
                 }
             };
+            if frame.id() == MOTION_ID || frame.id() == CONFIG_ID {
+                // Never our own (see BaseError::SecondCommander): another host commands the base.
+                self.foreign_commands.0 += 1;
+                self.foreign_commands.1 = frame.id();
+                self.foreign_this_tick = true;
+                continue;
+            }
             if !feedback::is_feedback_id(frame.id()) {
-                continue; // other hosts' commands, other devices
+                continue; // other devices
             }
             self.last_heard = Some(now);
             if !matches!(self.startup, Startup::Running | Startup::Verify) {

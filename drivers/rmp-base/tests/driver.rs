@@ -11,7 +11,9 @@ use rmp_base::{
 };
 use rmp_codec::faults::{self, FaultStatus};
 use rmp_codec::feedback::{FeedbackBitmaps, FeedbackItem, FeedbackLayout, FeedbackSet};
-use rmp_codec::v3::{ConfigCommand, FirmwareProfile, HostCommand, ModeRequest, OperationalState};
+use rmp_codec::v3::{
+    ConfigCommand, FirmwareProfile, HostCommand, ModeRequest, MotionCommand, OperationalState,
+};
 
 const PERIOD: Duration = Duration::from_millis(20);
 
@@ -115,6 +117,7 @@ impl ScriptedBase {
 }
 
 struct Rig {
+    bus: MemoryBus,
     base: ScriptedBase,
     driver: RmpBase<CanLink<MemoryBusNode>>,
     now: Duration,
@@ -126,6 +129,7 @@ impl Rig {
         let base = ScriptedBase::new(&bus);
         let driver = RmpBase::new(CanLink::new(bus.join()), config).unwrap();
         Self {
+            bus,
             base,
             driver,
             now: Duration::ZERO,
@@ -350,6 +354,60 @@ fn a_base_faster_than_commanded_is_stopped_until_rearmed() {
         rig.tick().unwrap();
     }
     assert!(rig.base.motions.last().unwrap().0 > 0.0);
+}
+
+#[test]
+fn a_second_commander_on_the_bus_stops_the_base_until_rearmed() {
+    let mut rig = Rig::new(RmpBaseConfig::default());
+    rig.enter_tractor();
+    for _ in 0..20 {
+        rig.driver.set_velocity(Twist::new(0.3, 0.0), rig.now);
+        rig.tick().unwrap();
+    }
+    // Our own motion frames never come back to us: nothing tripped so far.
+    assert!(rig.driver.disarmed().is_none());
+    // Another host (a teleop node left running, a second driver) commands the base.
+    let mut intruder = rig.bus.join();
+    let frame = to_can(&MotionCommand::new(0.5, 0.0).unwrap().encode());
+    intruder.send(&frame).unwrap();
+    rig.driver.set_velocity(Twist::new(0.3, 0.0), rig.now);
+    match rig.tick() {
+        Err(BaseError::SecondCommander { frames, last_id }) => {
+            assert_eq!((frames, last_id), (1, 0x500));
+        }
+        other => panic!("{other:?}"),
+    }
+    assert_eq!(rig.driver.disarmed(), Some(DisarmCause::SecondCommander));
+    assert_eq!(rig.base.motions.last(), Some(&(0.0, 0.0)));
+    // Latched: zero, and reported, every tick after, though the other host went quiet.
+    for _ in 0..10 {
+        rig.driver.set_velocity(Twist::new(0.3, 0.0), rig.now);
+        assert!(matches!(rig.tick(), Err(BaseError::SecondCommander { .. })));
+        assert_eq!(rig.base.motions.last(), Some(&(0.0, 0.0)));
+    }
+    rig.driver.rearm();
+    for _ in 0..10 {
+        rig.driver.set_velocity(Twist::new(0.3, 0.0), rig.now);
+        rig.tick().unwrap();
+    }
+    assert!(rig.base.motions.last().unwrap().0 > 0.0);
+}
+
+#[test]
+fn a_stalled_control_loop_counts_as_a_lost_link() {
+    let mut rig = Rig::new(RmpBaseConfig::default());
+    rig.enter_tractor();
+    for _ in 0..20 {
+        rig.driver.set_velocity(Twist::new(0.3, 0.0), rig.now);
+        rig.tick().unwrap();
+    }
+    // Our loop stops for 400 ms (longer than the base's patience); feedback sent before the
+    // stall is still queued, so the base does not look silent.
+    rig.now += Duration::from_millis(400);
+    rig.driver.set_velocity(Twist::new(0.3, 0.0), rig.now);
+    assert!(matches!(rig.tick(), Err(BaseError::Silent { .. })));
+    assert_eq!(rig.base.motions.last(), Some(&(0.0, 0.0)));
+    assert_eq!(rig.driver.disarmed(), Some(DisarmCause::LinkLost));
 }
 
 #[test]

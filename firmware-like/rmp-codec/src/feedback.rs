@@ -207,15 +207,10 @@ pub enum FeedbackError {
         /// Frames per set in the current layout.
         frames_per_set: usize,
     },
-    /// A frame arrived out of sequence; the partial set was dropped.
-    OutOfOrder {
-        /// Id the assembler waited for.
-        expected_id: u16,
-        /// Id that arrived.
-        got_id: u16,
-    },
-    /// A new set began (0x502) before the previous one was complete; the partial set was
-    /// dropped and the new frame kept.
+    /// A frame of a new set arrived (an id the current set already has, with other data)
+    /// before the current set was complete: a frame of it was lost. The partial set was
+    /// dropped and the new frame kept. (Frames of one set may arrive in any order, and an
+    /// exact repeat of a frame is ignored.)
     Truncated {
         /// Frames of the old set that had arrived.
         received_frames: usize,
@@ -246,13 +241,6 @@ impl fmt::Display for FeedbackError {
             FeedbackError::BeyondLayout { id, frames_per_set } => write!(
                 f,
                 "feedback frame {id:#05x} beyond the {frames_per_set} frames of the layout"
-            ),
-            FeedbackError::OutOfOrder {
-                expected_id,
-                got_id,
-            } => write!(
-                f,
-                "feedback frame {got_id:#05x} out of order (expected {expected_id:#05x})"
             ),
             FeedbackError::Truncated {
                 received_frames,
@@ -491,8 +479,8 @@ pub const fn is_feedback_id(id: u16) -> bool {
 pub struct FeedbackAssembler {
     layout: FeedbackLayout,
     words: [u32; MAX_ITEMS],
-    /// Frames of the current set received so far.
-    received: usize,
+    /// Frames of the current set received so far (bit k: frame 0x502 + k).
+    received: u64,
 }
 
 impl FeedbackAssembler {
@@ -543,28 +531,40 @@ impl FeedbackAssembler {
                 len: frame.len(),
             });
         }
+        let first = be_word(frame.data(), 0);
+        let second = if last_is_half {
+            0
+        } else {
+            be_word(frame.data(), 1)
+        };
+        let bit = 1u64 << index;
         let mut pending = Ok(None);
-        if index != self.received {
-            if index == 0 {
-                pending = Err(FeedbackError::Truncated {
-                    received_frames: self.received,
-                    frames_per_set,
-                });
-            } else {
-                let expected_id = FIRST_ID + self.received as u16;
-                self.received = 0;
-                return Err(FeedbackError::OutOfOrder {
-                    expected_id,
-                    got_id: id,
-                });
+        if self.received & bit != 0 {
+            let same = self.words[2 * index] == first
+                && (last_is_half || self.words[2 * index + 1] == second);
+            if same {
+                // The same frame again (a retransmission, a duplicating gateway): nothing new.
+                return Ok(None);
             }
+            // A frame of the next set: the current one lost a frame. Start over with this one.
+            pending = Err(FeedbackError::Truncated {
+                received_frames: self.received.count_ones() as usize,
+                frames_per_set,
+            });
+            self.received = 0;
         }
-        self.words[2 * index] = be_word(frame.data(), 0);
+        // Frames of a set may arrive in any order: each has its own id.
+        self.words[2 * index] = first;
         if !last_is_half {
-            self.words[2 * index + 1] = be_word(frame.data(), 1);
+            self.words[2 * index + 1] = second;
         }
-        self.received = index + 1;
-        if self.received == frames_per_set {
+        self.received |= bit;
+        let full = if frames_per_set >= 64 {
+            u64::MAX
+        } else {
+            (1u64 << frames_per_set) - 1
+        };
+        if self.received == full {
             self.received = 0;
             let set = FeedbackSet {
                 layout: self.layout,
@@ -675,30 +675,33 @@ mod tests {
         let layout = FeedbackLayout::default();
         let set = FeedbackSet::from_fn(layout, |item| item as u32);
         let frames: std::vec::Vec<_> = set.frames().collect();
+        let next = FeedbackSet::from_fn(layout, |item| item as u32 + 1000);
+        let next_frames: std::vec::Vec<_> = next.frames().collect();
         let mut asm = FeedbackAssembler::new(layout);
-        asm.push(&frames[0]).unwrap();
-        assert_eq!(
-            asm.push(&frames[2]),
-            Err(FeedbackError::OutOfOrder {
-                expected_id: 0x503,
-                got_id: 0x504
-            })
-        );
+        // Out of order within a set, and repeated frames: the set is still whole and right.
+        let mut order: std::vec::Vec<usize> = (0..frames.len()).rev().collect();
+        order.insert(3, order[2]);
+        let mut last = None;
+        for &k in &order {
+            last = asm.push(&frames[k]).unwrap();
+        }
+        assert_eq!(last, Some(set));
+        // A frame of the set lost: the next set's first frame (other data) says so.
         asm.push(&frames[0]).unwrap();
         asm.push(&frames[1]).unwrap();
         assert_eq!(
-            asm.push(&frames[0]),
+            asm.push(&next_frames[0]),
             Err(FeedbackError::Truncated {
                 received_frames: 2,
                 frames_per_set: 48
             })
         );
-        // The 0x502 that cut the old set short started a new one.
+        // The frame that cut the old set short started a new one.
         let mut last = None;
-        for f in &frames[1..] {
+        for f in &next_frames[1..] {
             last = asm.push(f).unwrap();
         }
-        assert_eq!(last, Some(set));
+        assert_eq!(last, Some(next));
         let small = FeedbackLayout::User(FeedbackBitmaps::from_items(&[
             FeedbackItem::OperationalState,
         ]));

@@ -66,6 +66,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         max_sim_s: args.max_sim_s,
         progress_s: 0.5,
         log: (!args.no_record).then(|| args.record.clone()),
+        fault: args.fault,
     };
     println!(
         "scene {:?}: {} chairs, {} objects; robot at {:.1} m/s, R = {}; method {}",

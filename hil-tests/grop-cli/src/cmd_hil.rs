@@ -173,6 +173,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                     max_sim_s: 600.0,
                     progress_s: 0.0,
                     log: None,
+                    fault: None,
                 };
                 let t0 = Instant::now();
                 let result = mission::start(&spec, &bins)

@@ -14,6 +14,7 @@
 //! The onboard binaries run against it unchanged: they see a CAN bus, a UR5e, iceoryx2 topics
 //! and a clock.
 
+pub mod faults;
 pub mod fixes;
 pub mod mission;
 pub mod objects;
@@ -33,6 +34,7 @@ use sim_ur5e::Ur5eSim;
 use ur5e_kin::{BasePose, ObstacleBox};
 use world::{RobotConfig, Scene};
 
+use faults::{CanFault, FaultKind, FaultRecord, FaultSpec, FaultyBus, Trigger};
 use fixes::{FixModel, FixSimulator};
 use objects::{JudgeConfig, ObjectEvent, ObjectTracker, Verdict};
 use report::{
@@ -81,6 +83,8 @@ pub struct WorldConfig {
     pub linger: Duration,
     /// Print a progress line every this much simulated time (`None`: quiet).
     pub progress_every: Option<Duration>,
+    /// The fault to inject (docs/reliability.md).
+    pub fault: Option<FaultSpec>,
 }
 
 impl WorldConfig {
@@ -111,6 +115,7 @@ impl WorldConfig {
             max_sim_time: Duration::from_secs(900),
             linger: Duration::from_secs(2),
             progress_every: None,
+            fault: None,
         }
     }
 }
@@ -158,7 +163,7 @@ struct Ports {
 pub struct World {
     config: WorldConfig,
     host: SimClockHost,
-    base: SimRmpNode<VirtualCanBus>,
+    base: SimRmpNode<FaultyBus<VirtualCanBus>>,
     arm: Ur5eSim,
     ports: Ports,
     objects: ObjectTracker,
@@ -193,13 +198,24 @@ impl World {
         )?;
         let bus = VirtualCanBus::join(&config.bus_name, "sim-rmp")
             .map_err(|e| WorldError::Bus(e.to_string()))?;
-        let base = SimRmpNode::new(bus, SimRmp::new(sim_rmp::SimConfig::default()));
+        let sim = SimRmp::new(sim_rmp::SimConfig::default());
+        let limits = base_limits(&sim);
+        let base = SimRmpNode::new(FaultyBus::new(bus, config.seed, limits), sim);
         let arm = Ur5eSim::start(sim_ur5e::SimConfig {
             stepping: sim_ur5e::Stepping::External,
             rate_hz: 1.0 / config.step.as_secs_f64(),
             ..sim_ur5e::SimConfig::ephemeral()
         })
         .map_err(WorldError::Arm)?;
+        if config
+            .fault
+            .is_some_and(|f| f.kind == FaultKind::DashboardLate)
+        {
+            // From the start: the executive talks to the dashboard while it starts up.
+            arm.link_faults()
+                .dashboard_delay_ms
+                .store(3000, std::sync::atomic::Ordering::Relaxed);
+        }
         let node = IpcNode::new(&config.namespace, "world").map_err(ipc)?;
         let ports = Ports {
             frames: node.publisher().map_err(ipc)?,
@@ -277,7 +293,14 @@ impl World {
             plans: Vec::new(),
             deaths: Vec::new(),
             timing: LoopTiming::default(),
+            fault: cfg.fault.map(|f| FaultRecord {
+                spec: f.to_string(),
+                ..FaultRecord::default()
+            }),
+            commands: faults::CommandMonitor::default(),
+            max_base_speed: (0.0, 0.0),
         };
+        let mut injector = Injector::default();
         let mut frame_id = 0u64;
         let mut fix_seq = 0u64;
         let mut hb_seq = 0u64;
@@ -346,7 +369,17 @@ impl World {
                 }
             }
 
+            // Faults: strike when the trigger comes, then keep up what lasts.
+            if let (Some(spec), Some(start)) = (cfg.fault, mission_start) {
+                self.inject(spec, &mut injector, now, start, &mut report);
+            }
             // Devices.
+            let limits = base_limits(self.base.sim());
+            let bus = self.base.bus_mut();
+            bus.set_limits(limits);
+            if let Err(e) = bus.set_now(now) {
+                log::warn!("world: CAN injector: {e}");
+            }
             if let Err(e) = self.base.poll(now) {
                 log::warn!("world: sim-rmp: {e}");
             }
@@ -362,6 +395,23 @@ impl World {
                 UnitQuaternion::from_axis_angle(&Vector3::z_axis(), pose.yaw_rad),
             );
             let snap = self.arm.snapshot();
+            report.max_base_speed.0 = report.max_base_speed.0.max(f64::from(v).abs());
+            report.max_base_speed.1 = report.max_base_speed.1.max(f64::from(w).abs());
+            if let (Some(rec), Some(at)) = (report.fault.as_mut(), injector.at) {
+                if now >= at {
+                    if rec.base_stopped_at_s.is_none()
+                        && f64::from(v).abs() < 0.01
+                        && f64::from(w).abs() < 0.01
+                    {
+                        rec.base_stopped_at_s = Some(secs(now));
+                    }
+                    if rec.arm_stopped_at_s.is_none() && max_abs(&snap.qd) < 0.01 {
+                        rec.arm_stopped_at_s = Some(secs(now));
+                    }
+                }
+            }
+            injector.base_speed = f64::from(v).abs();
+            injector.arm_speed = max_abs(&snap.qd);
             let place = &cfg.robot.place;
             let flange = world_from_base * place.mount.base_from_arm() * place.arm.forward(&snap.q);
             let tcp = flange * Point3::new(0.0, 0.0, place.tcp_offset_m);
@@ -514,7 +564,12 @@ impl World {
             if now >= next_fix {
                 next_fix = now + cfg.fix_period;
                 let truth = [pose.x_m, pose.y_m, pose.yaw_rad];
-                let g = self.fixes.global_fix(truth);
+                let mut g = self.fixes.global_fix(truth);
+                if injector.take_fix_jump() {
+                    // 1.5 m to the side of the heading: a plausible, wrong fix.
+                    g[0] -= 1.5 * truth[2].sin();
+                    g[1] += 1.5 * truth[2].cos();
+                }
                 fix_seq += 1;
                 let m = &cfg.fixes;
                 let _ = self.ports.poses.publish(&BasePoseMsg::fix(
@@ -563,6 +618,13 @@ impl World {
                     top_y_m: camera.top_y_m,
                 };
                 header.set_pixel_format(grop_ipc::PixelFormat::Rgb8);
+                let corrupt = injector
+                    .camera_corrupt_until
+                    .is_some_and(|until| now < until);
+                if corrupt {
+                    // A row stride shorter than a row: no consumer may read pixels from it.
+                    header.row_stride_bytes = camera.width_px;
+                }
                 // The furniture does not move: render once, publish the same picture.
                 if !rendered_once {
                     rendered_once = true;
@@ -572,7 +634,9 @@ impl World {
                     }
                 }
                 let published = self.ports.frames.publish_with(|f| {
-                    if let Ok(dst) = f.image_mut(header) {
+                    if corrupt {
+                        f.header = header;
+                    } else if let Ok(dst) = f.image_mut(header) {
                         if dst.len() == frame_buf.len() {
                             dst.copy_from_slice(&frame_buf);
                         }
@@ -726,7 +790,19 @@ impl World {
                     break;
                 }
             }
-            self.host.advance_to(now + dt);
+            if injector.jump.take().is_some() {
+                self.host.jump_to(now + Duration::from_secs(1));
+            } else {
+                self.host.advance_to(now + dt);
+            }
+        }
+        report.commands = self.base.bus_mut().monitor();
+        if let (Some(rec), Some(at)) = (report.fault.as_mut(), injector.at) {
+            rec.can = self.base.bus_mut().counts();
+            rec.can.intruder = injector.intruder_frames;
+            let at_s = secs(at);
+            rec.commanded_zero_at_s = report.commands.zero_since_s.map(|z| z.max(at_s));
+            rec.first_zero_command_at_s = report.commands.first_zero_after_mark_s;
         }
 
         report.objects = self.objects.objects().to_vec();
@@ -755,11 +831,147 @@ impl World {
         report
     }
 
+    /// Strikes when `spec`'s trigger comes, and keeps up what lasts (a burst's end, the second
+    /// commander's frames).
+    fn inject(
+        &mut self,
+        spec: FaultSpec,
+        inj: &mut Injector,
+        now: Duration,
+        start: Duration,
+        report: &mut WorldReport,
+    ) {
+        if inj.at.is_none() {
+            let due = match spec.trigger {
+                Trigger::Driving => inj.base_speed > 0.3,
+                Trigger::ArmMoving => inj.arm_speed > 0.3,
+                Trigger::At(t) => now >= start + t,
+            };
+            if !due {
+                return;
+            }
+            inj.at = Some(now);
+            if let Some(rec) = report.fault.as_mut() {
+                rec.injected_at_s = Some(secs(now));
+                rec.base_speed_then_mps = inj.base_speed;
+                rec.arm_speed_then_radps = inj.arm_speed;
+            }
+            println!(
+                "[{:7.2} s] world: injecting {spec} (base {:.2} m/s, arm {:.2} rad/s)",
+                secs(now),
+                inj.base_speed,
+                inj.arm_speed
+            );
+            let bus = self.base.bus_mut();
+            bus.mark();
+            let links = self.arm.link_faults();
+            use std::sync::atomic::Ordering::Relaxed;
+            match spec.kind {
+                FaultKind::CanLossBurst => {
+                    bus.set_fault(CanFault::Loss { p: 1.0 });
+                    inj.burst_until = Some(now + Duration::from_millis(400));
+                }
+                FaultKind::CanLossRandom => bus.set_fault(CanFault::Loss { p: 0.05 }),
+                FaultKind::CanDuplicate => bus.set_fault(CanFault::Duplicate),
+                FaultKind::CanDelay => bus.set_fault(CanFault::Delay {
+                    min: Duration::from_millis(5),
+                    max: Duration::from_millis(15),
+                }),
+                FaultKind::CanReorder => bus.set_fault(CanFault::Reorder),
+                FaultKind::CanCorruptFeedback => bus.set_fault(CanFault::CorruptFeedback),
+                FaultKind::CanSilent => bus.set_fault(CanFault::Loss { p: 1.0 }),
+                FaultKind::BaseFaultWord => self
+                    .base
+                    .sim_mut()
+                    .set_fault(rmp_codec::faults::VELOCITY_CONTROL_FAILED, true),
+                FaultKind::KillSwitch => self
+                    .base
+                    .sim_mut()
+                    .set_fault(rmp_codec::faults::KILL_SWITCH_ACTIVE, true),
+                FaultKind::SecondCommander => {
+                    match VirtualCanBus::join(&self.config.bus_name, "intruder") {
+                        Ok(node) => inj.intruder = Some((node, now + Duration::from_millis(200))),
+                        Err(e) => log::error!("world: second commander cannot join: {e}"),
+                    }
+                }
+                FaultKind::RtdeDrop => {
+                    self.arm.cut_rtde_connections();
+                }
+                FaultKind::RtdeSilent => links.rtde_muted.store(true, Relaxed),
+                FaultKind::ProtectiveStop => self.arm.trigger_protective_stop("fault injection"),
+                FaultKind::EmergencyStop => self.arm.trigger_emergency_stop("fault injection"),
+                // Overcurrent (Robotiq FLT 0x0E): a major fault, fingers stop.
+                FaultKind::GripperFault => self.arm.trigger_gripper_fault(0x0e),
+                FaultKind::GripperTimeout => links.gripper_muted.store(true, Relaxed),
+                // Replies late since the start; the stop makes the executive need one.
+                FaultKind::DashboardLate => self.arm.trigger_protective_stop("fault injection"),
+                FaultKind::CameraCorrupt => {
+                    inj.camera_corrupt_until = Some(now + Duration::from_secs(3));
+                }
+                FaultKind::ClockJump => inj.jump = Some(()),
+                FaultKind::LocalisationJump => inj.fix_jump = true,
+            }
+        }
+        if inj.burst_until.is_some_and(|until| now >= until) {
+            inj.burst_until = None;
+            self.base.bus_mut().set_fault(CanFault::None);
+        }
+        if let Some((node, until)) = inj.intruder.as_mut() {
+            if now >= *until {
+                inj.intruder = None;
+            } else if now >= inj.intruder_next {
+                inj.intruder_next = now + Duration::from_millis(20);
+                // A slow forward crawl: within every limit, but not ours.
+                if let Ok(cmd) = rmp_codec::v3::MotionCommand::new(0.05, 0.0) {
+                    let raw = cmd.encode();
+                    if let Ok(frame) =
+                        can_bus::CanFrame::new(can_bus::CanId::Standard(raw.id()), raw.data())
+                    {
+                        if can_bus::CanBus::send(node, &frame).is_ok() {
+                            inj.intruder_frames += 1;
+                        }
+                    }
+                }
+            }
+        }
+    }
+
     fn world_event(&mut self, kind: grop_ipc::EventKind, now: Duration, detail: &str) {
         log::info!("world: {detail}");
         let msg = EventMsg::new(kind, ns(now), detail).with_source(grop_ipc::ProcessRole::World);
         let _ = self.ports.world_events.publish(&msg);
     }
+}
+
+/// The fault injector's state over a mission.
+#[derive(Default)]
+struct Injector {
+    /// When the fault struck.
+    at: Option<Duration>,
+    /// Base and arm speed at the last step (the triggers).
+    base_speed: f64,
+    arm_speed: f64,
+    burst_until: Option<Duration>,
+    intruder: Option<(VirtualCanBus, Duration)>,
+    intruder_next: Duration,
+    intruder_frames: u64,
+    camera_corrupt_until: Option<Duration>,
+    fix_jump: bool,
+    jump: Option<()>,
+}
+
+impl Injector {
+    fn take_fix_jump(&mut self) -> bool {
+        std::mem::take(&mut self.fix_jump)
+    }
+}
+
+/// The simulated base's velocity and yaw-rate limits (what a normalised command is scaled by).
+fn base_limits(sim: &SimRmp) -> (f64, f64) {
+    (
+        f64::from(sim.nvm(rmp_codec::v3::NvmFloat::MaxVelocityMps)),
+        f64::from(sim.nvm(rmp_codec::v3::NvmFloat::MaxTurnRateRadps)),
+    )
 }
 
 fn ns_to_s(ns: u64) -> f64 {

@@ -122,6 +122,8 @@ pub struct MissionSpec {
     pub progress_s: f64,
     /// Write the mission log (MCAP) here (`grop-recorder` joins the mission); `None`: no log.
     pub log: Option<PathBuf>,
+    /// A fault for the world to inject (docs/reliability.md).
+    pub fault: Option<crate::faults::FaultSpec>,
 }
 
 static RUNS: AtomicU64 = AtomicU64::new(0);
@@ -377,6 +379,9 @@ pub fn start(spec: &MissionSpec, bins: &Binaries) -> anyhow::Result<RunningMissi
         .stderr(log("world")?);
     if let Some(p) = spec.pace {
         world_cmd.args(["--pace", &p.to_string()]);
+    }
+    if let Some(f) = spec.fault {
+        world_cmd.args(["--fault", &f.to_string()]);
     }
     if spec.log.is_some() {
         world_cmd.args(["--expect", "grop-planner,grop-executive,grop-recorder"]);

@@ -167,4 +167,13 @@ pub struct WorldReport {
     pub deaths: Vec<DeathRecord>,
     /// Timing.
     pub timing: LoopTiming,
+    /// The fault injected, if any, and what followed.
+    #[serde(default)]
+    pub fault: Option<crate::faults::FaultRecord>,
+    /// The motion commands the base received over the mission.
+    #[serde(default)]
+    pub commands: crate::faults::CommandMonitor,
+    /// Fastest the base truly drove (m/s) and turned (rad/s).
+    #[serde(default)]
+    pub max_base_speed: (f64, f64),
 }

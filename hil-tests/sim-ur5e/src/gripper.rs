@@ -57,8 +57,16 @@ impl GripperModel {
             .map(|w| 255.0 * (1.0 - w / STROKE_M))
     }
 
+    /// Fault injection: FLT reads `code` and the fingers stop until the next activation.
+    pub fn inject_fault(&mut self, code: u8) {
+        self.flt = code;
+    }
+
     /// Advances the fingers by `dt` seconds.
     pub fn step(&mut self, dt: f64) {
+        if self.flt != 0 {
+            return;
+        }
         if self.sta == 1 {
             self.activation_left_s -= dt;
             if self.activation_left_s <= 0.0 {

@@ -41,7 +41,7 @@ pub mod urscript;
 use std::io;
 use std::net::{IpAddr, Ipv4Addr, SocketAddr, TcpStream};
 use std::sync::Arc;
-use std::sync::atomic::Ordering;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::thread::JoinHandle;
 use std::time::Duration;
 
@@ -268,6 +268,22 @@ impl Ur5eSim {
         self.shared.cut(None)
     }
 
+    /// Fault injection at the controller's sockets (connections stay open).
+    pub fn link_faults(&self) -> &LinkFaults {
+        &self.shared.link_faults
+    }
+
+    /// Fault injection: an emergency stop (the red button on the teach pendant).
+    pub fn trigger_emergency_stop(&self, reason: &str) {
+        lock(&self.shared.ctl).robot.emergency_stop(reason);
+    }
+
+    /// Fault injection: the gripper reports fault `code` (FLT) and stops moving until it is
+    /// re-activated.
+    pub fn trigger_gripper_fault(&self, code: u8) {
+        lock(&self.shared.ctl).robot.gripper.inject_fault(code);
+    }
+
     /// Puts an object of this width between the gripper fingers (or removes it).
     pub fn set_gripper_object(&self, width_m: Option<f64>) {
         lock(&self.shared.ctl).robot.gripper.object_width_m = width_m;
@@ -277,6 +293,19 @@ impl Ur5eSim {
     pub fn with_robot<R>(&self, f: impl FnOnce(&mut robot::RobotModel) -> R) -> R {
         f(&mut lock(&self.shared.ctl).robot)
     }
+}
+
+/// Faults injected at the controller's sockets: the connections stay open, what goes through
+/// them changes. Set from any thread; every connection sees them at once.
+#[derive(Debug, Default)]
+pub struct LinkFaults {
+    /// RTDE data packages are no longer written (the controller stays connected and silent);
+    /// external steps are not held up by it.
+    pub rtde_muted: AtomicBool,
+    /// Gripper (63352) requests are read and acted on but never answered.
+    pub gripper_muted: AtomicBool,
+    /// Every dashboard reply is held back this long (wall time, ms).
+    pub dashboard_delay_ms: AtomicU64,
 }
 
 impl Drop for Ur5eSim {

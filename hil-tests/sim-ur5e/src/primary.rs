@@ -29,7 +29,7 @@ pub fn robot_state(s: &Snapshot, out: &mut Vec<u8>) {
         true,
         s.robot_mode == robot_mode::RUNNING,
         s.robot_mode >= robot_mode::POWER_ON,
-        false,
+        s.safety_mode == 7,
         s.safety_mode == 3,
         running,
         paused,

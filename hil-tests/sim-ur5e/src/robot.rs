@@ -208,7 +208,7 @@ pub struct Snapshot {
     pub elbow_position: [f64; 3],
     /// Robot mode.
     pub robot_mode: i32,
-    /// Safety mode (1 normal, 3 protective stop).
+    /// Safety mode (1 normal, 3 protective stop, 7 robot emergency stop).
     pub safety_mode: i32,
     /// Runtime state.
     pub runtime_state: u32,
@@ -230,10 +230,12 @@ impl Snapshot {
         power | (running << 1)
     }
 
-    /// `safety_status_bits`: bit 0 normal, bit 2 protective stop.
+    /// `safety_status_bits`: bit 0 normal, bit 2 protective stop, bits 6 and 7 robot
+    /// emergency stop / emergency stopped.
     pub fn safety_status_bits(&self) -> u32 {
         match self.safety_mode {
             3 => 1 << 2,
+            7 => (1 << 6) | (1 << 7),
             _ => 1,
         }
     }
@@ -522,6 +524,21 @@ impl RobotModel {
         self.running = None;
         self.watchdog = None;
         self.safety_mode = 3;
+        self.motion = Motion::Stop {
+            decel: PROTECTIVE_STOP_DECEL_RADPS2,
+        };
+    }
+
+    /// Emergency stop (category 1: brake hard, then power off the joints): the program stops,
+    /// motion is refused until the stop is released and the arm powered on again.
+    pub fn emergency_stop(&mut self, reason: &str) {
+        if self.safety_mode == 7 {
+            return;
+        }
+        self.log(1, format!("emergency stop: {reason}"));
+        self.running = None;
+        self.watchdog = None;
+        self.safety_mode = 7;
         self.motion = Motion::Stop {
             decel: PROTECTIVE_STOP_DECEL_RADPS2,
         };

@@ -90,6 +90,8 @@ pub(crate) struct Shared {
     pub acked: Condvar,
     /// One external step at a time.
     pub step_lock: Mutex<()>,
+    /// Link faults injected at the controller's sockets ([`crate::LinkFaults`]).
+    pub link_faults: crate::LinkFaults,
 }
 
 /// Which socket a connection came in on.
@@ -135,6 +137,7 @@ impl Shared {
             acks: Mutex::new(Vec::new()),
             acked: Condvar::new(),
             step_lock: Mutex::new(()),
+            link_faults: crate::LinkFaults::default(),
         }
     }
 
@@ -466,7 +469,7 @@ fn rtde_write_package(
     }
     // Start/pause may have changed meanwhile: decide under the writer lock.
     let mut w = lock(writer);
-    if !lock(conn).started {
+    if !lock(conn).started || shared.link_faults.rtde_muted.load(Ordering::Relaxed) {
         return Ok(false);
     }
     w.write_all(buf).map(|()| true).map_err(|_| ())
@@ -750,6 +753,13 @@ fn dashboard_connection(shared: &Shared, stream: TcpStream) -> io::Result<()> {
         }
         let command = line.trim_end_matches(['\n', '\r']).trim();
         let reply = dashboard_reply(shared, command, &mut loaded);
+        let delay_ms = shared
+            .link_faults
+            .dashboard_delay_ms
+            .load(Ordering::Relaxed);
+        if delay_ms > 0 {
+            std::thread::sleep(Duration::from_millis(delay_ms));
+        }
         writer.write_all(reply.as_bytes())?;
         writer.write_all(b"\n")?;
         if command == "quit" {
@@ -1041,6 +1051,9 @@ fn gripper_connection(shared: &Shared, stream: TcpStream) -> io::Result<()> {
             return Ok(());
         }
         let reply = lock(&shared.ctl).robot.gripper.handle(line.trim());
+        if shared.link_faults.gripper_muted.load(Ordering::Relaxed) {
+            continue; // read, never answered
+        }
         writer.write_all(reply.as_bytes())?;
         writer.write_all(b"\n")?;
     }

@@ -44,6 +44,10 @@ struct Args {
     /// Participants to wait for, comma-separated.
     #[arg(long, default_value = "grop-planner,grop-executive")]
     expect: String,
+    /// Inject one fault: KIND, KIND@driving, KIND@arm or KIND@SECONDS after the mission
+    /// starts (docs/reliability.md lists the kinds).
+    #[arg(long)]
+    fault: Option<hil_world::faults::FaultSpec>,
     /// Where to write the report (JSON).
     #[arg(long)]
     report: Option<PathBuf>,
@@ -95,6 +99,7 @@ fn main() -> anyhow::Result<()> {
         .filter(|s| !s.is_empty())
         .map(str::to_owned)
         .collect();
+    config.fault = args.fault;
     let mut world = World::new(config).context("starting the world")?;
     let ports = world.arm_ports();
     let c = world.config();

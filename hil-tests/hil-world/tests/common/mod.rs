@@ -28,5 +28,6 @@ pub fn spec(test: &str, seed: u64) -> MissionSpec {
         max_sim_s: 400.0,
         progress_s: 0.1,
         log: None,
+        fault: None,
     }
 }

@@ -106,6 +106,10 @@ pub struct ExecutiveConfig {
     pub planner_timeout: Duration,
     /// A plan request without an answer is sent again after this.
     pub plan_request_retry: Duration,
+    /// After the localisation jumps (a fix far from the estimate), the base is commanded to
+    /// stand still (through the deceleration ramp) this long, so that it never steers hard on
+    /// one wrong fix (or on the jump back); then the leg goes on from the estimate.
+    pub jump_hold: Duration,
     /// Heartbeat period.
     pub heartbeat_period: Duration,
     /// Localisation filter.
@@ -141,6 +145,7 @@ impl ExecutiveConfig {
             leg_slack: Duration::from_secs(20),
             planner_timeout: Duration::from_millis(500),
             plan_request_retry: Duration::from_secs(1),
+            jump_hold: Duration::from_secs(1),
             heartbeat_period: Duration::from_millis(100),
             localiser: LocaliserConfig::default(),
             tray_slots: unload::default_tray_slots().to_vec(),
@@ -185,8 +190,10 @@ pub enum MissionState {
 pub enum AbortReason {
     /// The base stopped answering on CAN.
     BaseLinkLost,
-    /// The base reported a fault.
+    /// The base reported a fault, or moved faster than commanded.
     BaseFault,
+    /// Another host sends commands on the base's bus.
+    SecondCommander,
     /// The arm link is gone.
     ArmLinkLost,
     /// The arm is in a protective or emergency stop.
@@ -295,6 +302,8 @@ pub struct Executive<B: CanBus, A: ArmDevice> {
     request_id: u64,
     request_sent: Option<Duration>,
     last_request: ReplanRequestMsg,
+    /// Standing still after a localisation jump until then.
+    jump_hold_until: Option<Duration>,
     /// Objects not yet placed (or given up), bit i = object i.
     remaining: u64,
     /// Tray slot -> object.
@@ -423,6 +432,7 @@ impl<B: CanBus, A: ArmDevice> Executive<B, A> {
             request_id: 0,
             request_sent: None,
             last_request: zero_request(),
+            jump_hold_until: None,
             remaining,
             slots: [None; 8],
             planner_seen: None,
@@ -590,6 +600,9 @@ impl<B: CanBus, A: ArmDevice> Executive<B, A> {
             };
             if let FixOutcome::Jumped { by_m } = outcome {
                 if by_m > self.config.localiser.jump_m {
+                    // Which pose is right is unknown until the next fixes agree: stand still
+                    // meanwhile instead of steering hard towards either.
+                    self.jump_hold_until = Some(now + self.config.jump_hold);
                     self.event(
                         EventKind::StaleInput,
                         now,
@@ -642,6 +655,11 @@ impl<B: CanBus, A: ArmDevice> Executive<B, A> {
             MissionState::Running => self.mission_step(now),
             MissionState::Finished | MissionState::Aborted(_) => {}
         }
+        if self.jump_hold_until.is_some_and(|until| now < until) {
+            self.velocity = Twist::ZERO;
+        } else {
+            self.jump_hold_until = None;
+        }
         if matches!(self.state, MissionState::Running)
             && self.velocity != Twist::ZERO
             && self.localiser.is_stale(ns(now))
@@ -672,10 +690,15 @@ impl<B: CanBus, A: ArmDevice> Executive<B, A> {
         self.base.set_velocity(self.velocity, now);
         let tick = self.base.tick(now);
         match &tick {
-            Err(BaseError::Silent { .. }) => self.abort(AbortReason::BaseLinkLost, now),
+            // Unreadable feedback disarms the driver like silence does: no mission goes on
+            // with a base that only ever gets zero.
+            Err(BaseError::Silent { .. } | BaseError::FeedbackUnreadable { .. }) => {
+                self.abort(AbortReason::BaseLinkLost, now)
+            }
             Err(BaseError::Faulted { .. } | BaseError::Overspeed { .. }) => {
                 self.abort(AbortReason::BaseFault, now)
             }
+            Err(BaseError::SecondCommander { .. }) => self.abort(AbortReason::SecondCommander, now),
             _ => {}
         }
         let odo = *self.base.odometry();
@@ -1243,7 +1266,7 @@ impl<B: CanBus, A: ArmDevice> Executive<B, A> {
         self.request_sent = None;
         let kind = match reason {
             AbortReason::BaseLinkLost | AbortReason::ArmLinkLost => EventKind::LinkLost,
-            AbortReason::BaseFault => EventKind::BaseFault,
+            AbortReason::BaseFault | AbortReason::SecondCommander => EventKind::BaseFault,
             AbortReason::ArmStopped => EventKind::ArmStopped,
             AbortReason::PlannerLost => EventKind::PeerLost,
             AbortReason::ClockLost | AbortReason::Shutdown | AbortReason::Stuck => {
