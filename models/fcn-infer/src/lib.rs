@@ -30,6 +30,7 @@ use std::sync::Arc;
 use tract_onnx::prelude::*;
 use tract_onnx::tract_hir::infer::Factoid;
 
+pub mod direct_conv;
 pub mod overhead;
 mod record;
 
@@ -43,6 +44,17 @@ pub const CROP_COLS: usize = 64;
 pub const CROP_CELLS: usize = CROP_ROWS * CROP_COLS;
 /// Largest batch one call runs: both sides of three targets.
 pub const MAX_BATCH: usize = 6;
+
+/// How the network's convolutions run.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum ConvBackend {
+    /// Our [`direct_conv::DirectConv`] operator, swapped into the graph after loading (the
+    /// default: the same weights and, within float rounding, the same outputs, 2-3x faster).
+    #[default]
+    Direct,
+    /// tract's own lowering (Pad + im2col + packed matrix products): the reference.
+    Tract,
+}
 
 /// `count` deterministic gray-pattern crops (not scenes): the fixed inputs of the latency
 /// harnesses and benchmarks, so every timing tool feeds the model the same bytes.
@@ -170,6 +182,12 @@ pub enum InferError {
 /// refill in place.
 pub struct FcnModel {
     path: PathBuf,
+    /// One plan per batch size: `plans[b - 1]` runs `b` crops.
+    plans: Vec<Plan>,
+}
+
+/// A fixed-batch plan, its session state and the input tensor we refill in place.
+struct Plan {
     state: TypedSimpleState,
     input: Arc<Tensor>,
 }
@@ -191,9 +209,14 @@ impl FcnModel {
     /// ([`ModelLoadError::ChecksumMismatch`], [`ModelLoadError::BadRecord`]). A model without
     /// a record loads unverified, with a warning.
     pub fn load(path: &Path) -> Result<FcnModel, ModelLoadError> {
+        Self::load_with(path, ConvBackend::default())
+    }
+
+    /// [`FcnModel::load`] with the convolutions run by `backend`.
+    pub fn load_with(path: &Path, backend: ConvBackend) -> Result<FcnModel, ModelLoadError> {
         let bytes = record::read_bounded(path, MAX_MODEL_BYTES)?;
         record::verify(path, &bytes)?;
-        Self::from_bytes(&bytes, path)
+        Self::from_bytes_with(&bytes, path, backend)
     }
 
     /// Like [`FcnModel::load`] from bytes already in memory; `origin` names them in errors.
@@ -203,8 +226,18 @@ impl FcnModel {
     /// fuzzing, `docs/fuzzing.md`), so a panic while reading, checking or preparing the model is
     /// caught and reported as [`ModelLoadError::Corrupt`].
     pub fn from_bytes(bytes: &[u8], origin: &Path) -> Result<FcnModel, ModelLoadError> {
+        Self::from_bytes_with(bytes, origin, ConvBackend::default())
+    }
+
+    /// [`FcnModel::from_bytes`] with the convolutions run by `backend`.
+    pub fn from_bytes_with(
+        bytes: &[u8],
+        origin: &Path,
+        backend: ConvBackend,
+    ) -> Result<FcnModel, ModelLoadError> {
         // Nothing outlives a panic: the partly built model is dropped while unwinding.
-        let load = std::panic::AssertUnwindSafe(|| Self::from_bytes_unguarded(bytes, origin));
+        let load =
+            std::panic::AssertUnwindSafe(|| Self::from_bytes_unguarded(bytes, origin, backend));
         std::panic::catch_unwind(load).unwrap_or_else(|panic| {
             let message = panic
                 .downcast_ref::<&str>()
@@ -218,7 +251,11 @@ impl FcnModel {
         })
     }
 
-    fn from_bytes_unguarded(bytes: &[u8], origin: &Path) -> Result<FcnModel, ModelLoadError> {
+    fn from_bytes_unguarded(
+        bytes: &[u8],
+        origin: &Path,
+        backend: ConvBackend,
+    ) -> Result<FcnModel, ModelLoadError> {
         let path = origin.to_path_buf();
         let model = tract_onnx::onnx()
             .model_for_read(&mut &bytes[..])
@@ -227,9 +264,22 @@ impl FcnModel {
                 reason: format!("{e:#}"),
             })?;
         check_declared_interface(&model, &path)?;
-        let (state, input) = prepare(&model, 1, &path)?;
-        log::info!("loaded FCN model {}", path.display());
-        Ok(FcnModel { path, state, input })
+        // With our convolutions, one plan per batch size: a batch runs as one (the elementwise
+        // and axis ops then run once per call). tract's own plans for batch > 1 of this network
+        // fall back to eager im2col and unfused adds, slower than single runs (docs/fcn.md), so
+        // with them the one-crop plan runs per crop, as before.
+        let batches = match backend {
+            ConvBackend::Direct => MAX_BATCH,
+            ConvBackend::Tract => 1,
+        };
+        let plans = (1..=batches)
+            .map(|batch| prepare(&model, batch, &path, backend))
+            .collect::<Result<Vec<_>, _>>()?;
+        log::info!(
+            "loaded FCN model {} ({backend:?} convolutions)",
+            path.display()
+        );
+        Ok(FcnModel { path, plans })
     }
 
     /// The file the model came from.
@@ -239,10 +289,11 @@ impl FcnModel {
 
     /// Psi for one crop: `out[row * 64 + col]` is the success probability of that cell.
     pub fn predict(&mut self, crop: &Crop, out: &mut HeatmapCells) -> Result<(), InferError> {
-        self.run_one(crop, out, 0)
+        self.run(std::slice::from_ref(crop), std::slice::from_mut(out))
     }
 
-    /// Psi for up to [`MAX_BATCH`] crops in one call (e.g. both sides of three targets).
+    /// Psi for up to [`MAX_BATCH`] crops in one call (e.g. both sides of three targets), run as
+    /// one batch.
     pub fn predict_batch(
         &mut self,
         crops: &[Crop],
@@ -257,33 +308,46 @@ impl FcnModel {
                 outputs: out.len(),
             });
         }
+        self.run(crops, out)
+    }
+
+    fn run(&mut self, crops: &[Crop], out: &mut [HeatmapCells]) -> Result<(), InferError> {
+        if crops.len() <= self.plans.len() {
+            return self.run_plan(crops, out, 0);
+        }
+        // Only the one-crop plan (tract's own convolutions): one run per crop.
         for (i, (crop, heat)) in crops.iter().zip(out.iter_mut()).enumerate() {
-            self.run_one(crop, heat, i)?;
+            self.run_plan(std::slice::from_ref(crop), std::slice::from_mut(heat), i)?;
         }
         Ok(())
     }
 
-    fn run_one(
+    /// Runs the plan for `crops.len()` crops; `first` is the first crop's index in the caller's
+    /// batch (for errors).
+    fn run_plan(
         &mut self,
-        crop: &Crop,
-        out: &mut HeatmapCells,
-        index: usize,
+        crops: &[Crop],
+        out: &mut [HeatmapCells],
+        first: usize,
     ) -> Result<(), InferError> {
+        let batch = crops.len();
+        let plan = &mut self.plans[batch - 1];
         // The input tensor is ours alone between calls (tract drops its handle at the end of a
         // run), so it is refilled in place; a fresh one is only made if that ever stops holding.
-        if Arc::get_mut(&mut self.input).is_none() {
-            self.input =
-                Arc::new(Tensor::zero::<u8>(&[1, 1, CROP_ROWS, CROP_COLS]).map_err(runtime)?);
+        if Arc::get_mut(&mut plan.input).is_none() {
+            plan.input =
+                Arc::new(Tensor::zero::<u8>(&[batch, 1, CROP_ROWS, CROP_COLS]).map_err(runtime)?);
         }
-        let input = Arc::get_mut(&mut self.input)
+        let input = Arc::get_mut(&mut plan.input)
             .ok_or_else(|| InferError::Runtime("input tensor shared".into()))?;
         let mut view = input.try_as_plain_ram_mut().map_err(runtime)?;
-        view.as_slice_mut::<u8>()
-            .map_err(runtime)?
-            .copy_from_slice(crop);
-        let outputs = self
+        let cells = view.as_slice_mut::<u8>().map_err(runtime)?;
+        for (dst, crop) in cells.chunks_exact_mut(CROP_CELLS).zip(crops) {
+            dst.copy_from_slice(crop);
+        }
+        let outputs = plan
             .state
-            .run(tvec!(TValue::from_const(self.input.clone())))
+            .run(tvec!(TValue::from_const(plan.input.clone())))
             .map_err(runtime)?;
         let heat = outputs
             .first()
@@ -292,24 +356,27 @@ impl FcnModel {
             .map_err(runtime)?
             .as_slice::<f32>()
             .map_err(runtime)?;
-        if heat.len() != CROP_CELLS {
+        if heat.len() != batch * CROP_CELLS {
             return Err(InferError::Runtime(format!(
-                "output has {} values, expected {CROP_CELLS}",
-                heat.len()
+                "output has {} values, expected {}",
+                heat.len(),
+                batch * CROP_CELLS
             )));
         }
-        if let Some((cell, &value)) = heat
+        if let Some((i, &value)) = heat
             .iter()
             .enumerate()
             .find(|(_, v)| !(0.0..=1.0).contains(*v))
         {
             return Err(InferError::NotAProbability {
-                crop: index,
-                cell,
+                crop: first + i / CROP_CELLS,
+                cell: i % CROP_CELLS,
                 value,
             });
         }
-        out.copy_from_slice(heat);
+        for (dst, src) in out.iter_mut().zip(heat.chunks_exact(CROP_CELLS)) {
+            dst.copy_from_slice(src);
+        }
         Ok(())
     }
 }
@@ -368,18 +435,24 @@ fn prepare(
     model: &InferenceModel,
     batch: usize,
     path: &Path,
-) -> Result<(TypedSimpleState, Arc<Tensor>), ModelLoadError> {
+    backend: ConvBackend,
+) -> Result<Plan, ModelLoadError> {
     let prep = |e: TractError| ModelLoadError::Prepare {
         path: path.to_path_buf(),
         batch,
         reason: format!("{e:#}"),
     };
     let shape = [batch, 1, CROP_ROWS, CROP_COLS];
-    let typed = model
+    let mut typed = model
         .clone()
         .with_input_fact(0, u8::fact(shape).into())
-        .and_then(|m| m.into_optimized())
+        .and_then(|m| m.into_typed())
         .map_err(prep)?;
+    if backend == ConvBackend::Direct {
+        let summary = direct_conv::rewrite_convolutions(&mut typed).map_err(prep)?;
+        log::debug!("batch {batch}: {summary:?}");
+    }
+    let typed = typed.into_optimized().map_err(prep)?;
     let out_fact = typed.output_fact(0).map_err(prep)?;
     let want: TVec<TDim> = shape.iter().map(|&d| d.to_dim()).collect();
     if out_fact.datum_type != f32::datum_type() || out_fact.shape.to_tvec() != want {
@@ -394,5 +467,5 @@ fn prepare(
     let runnable = typed.into_runnable().map_err(prep)?;
     let state = runnable.spawn().map_err(prep)?;
     let input = Arc::new(Tensor::zero::<u8>(&shape).map_err(prep)?);
-    Ok((state, input))
+    Ok(Plan { state, input })
 }
