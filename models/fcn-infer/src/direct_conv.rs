@@ -5,13 +5,17 @@
 //! its direct spatial kernel only engages for output rows of at least 128 (`MIN_DIRECT_SPATIAL_W`
 //! in tract-core's `ops/cnn/conv/conv.rs`); our rows are 8 to 32 wide. Here each convolution
 //! runs as: one copy of the input into a zero-padded buffer whose columns are split by stride
-//! phase (so every tap of a strided convolution reads 8 consecutive floats), then a register-
-//! blocked loop over 4 output channels x 3 vectors of 8 output pixels (12 accumulators, AVX2 +
-//! FMA when the CPU has them, checked once at run time; the same loop in scalar code otherwise).
+//! phase (so every tap of a strided convolution reads 8 consecutive floats; the buffer is the
+//! node's state, its padding written once), then a register-blocked loop over 4 output channels x
+//! 2 vectors of 8 output pixels (8 accumulators: with 3 vectors, 12 accumulators + loads +
+//! broadcast overflow AVX2's 16 registers and spill, measured 1.7x slower), AVX2 + FMA when the
+//! CPU has them, checked once at run time, the same loop in scalar code otherwise. Bias, the
+//! added map, the ReLU and a following depth-to-space are applied in the store.
 //!
 //! [`rewrite_convolutions`] swaps tract's `Conv` nodes for [`DirectConv`] in a typed model before
-//! tract declutters and optimises it, fusing a following `Add` of a constant and a ReLU (`Max`
-//! with 0) when the convolution is their only producer. The model's file is not changed: the
+//! tract declutters and optimises it, fusing a following `Add` of a constant, a ReLU (`Max` with
+//! 0) and a depth-to-space (PixelShuffle(2), which tract runs as two axis moves) when each is the
+//! only consumer of what precedes it. The model's file is not changed: the
 //! weights are the same, and `tests/direct_conv.rs` checks the rewritten plan against tract's own.
 
 use tract_onnx::prelude::*;
@@ -25,8 +29,8 @@ use tract_onnx::tract_core::ops::nn::DataFormat;
 const OB: usize = 4;
 /// Output pixels per vector.
 const LANES: usize = 8;
-/// Vectors per register block.
-const NV: usize = 3;
+/// Vectors per register block (see the module documentation for why 2).
+const NV: usize = 2;
 
 /// A 2-D convolution (group 1, dilation 1, NCHW, f32) with constant weights, run directly.
 #[derive(Debug, Clone, PartialEq, Eq, Hash)]
@@ -48,6 +52,10 @@ pub struct DirectConv {
     add_map: Option<Arc<Tensor>>,
     /// ReLU fused after the add.
     relu: bool,
+    /// A following depth-to-space (PyTorch's PixelShuffle(2), ONNX DepthToSpace CRD, block 2)
+    /// fused into the store: output `[n, out_c / 4, 2 out_h, 2 out_w]`, channel `4k + 2i + j`
+    /// of pixel `(y, x)` written at `(k, 2y + i, 2x + j)`.
+    shuffle: bool,
 }
 
 impl DirectConv {
@@ -100,6 +108,7 @@ impl DirectConv {
             bias: Arc::new(tensor1(bias)),
             add_map: None,
             relu: false,
+            shuffle: false,
         })
     }
 
@@ -130,6 +139,16 @@ impl DirectConv {
         let map = map.broadcast_to_shape(&full)?;
         self.add_map = Some(Arc::new(map));
         Ok(self)
+    }
+
+    /// The output shape `[c, h, w]` per image for an input of `h` x `w`.
+    fn output_chw(&self, h: usize, w: usize) -> TractResult<[usize; 3]> {
+        let (oh, ow) = self.output_hw(h, w)?;
+        Ok(if self.shuffle {
+            [self.out_c / 4, 2 * oh, 2 * ow]
+        } else {
+            [self.out_c, oh, ow]
+        })
     }
 
     fn with_relu(mut self) -> DirectConv {
@@ -246,7 +265,6 @@ struct Geometry {
     w: usize,
     oh: usize,
     ow: usize,
-    sh: usize,
     sw: usize,
     pad_top: usize,
     pad_left: usize,
@@ -259,6 +277,11 @@ struct Geometry {
     buf_len: usize,
     /// Offset of each tap `(ky, kx)` from a vector's base, within one input channel.
     taps: Vec<usize>,
+    /// Per output vector: its base offset in the buffer, its offset `y * ow + x0` in an output
+    /// plane, its lanes inside the row, its row `y` (tables, so the hot loops divide nothing).
+    vectors: Vec<(usize, (usize, usize, usize))>,
+    /// Per stride phase: the first input column of the phase and its offset in the buffer row.
+    phases: Vec<(usize, usize)>,
 }
 
 impl Geometry {
@@ -280,11 +303,23 @@ impl Geometry {
             w,
             oh,
             ow,
-            sh: c.sh,
             sw: c.sw,
             pad_top: c.pad[0],
             pad_left: c.pad[1],
             vecs_per_row,
+            vectors: (0..oh * vecs_per_row)
+                .map(|v| {
+                    let (y, x0) = (v / vecs_per_row, (v % vecs_per_row) * LANES);
+                    (y * c.sh * wq + x0, (y * ow + x0, (ow - x0).min(LANES), y))
+                })
+                .collect(),
+            phases: (0..c.sw)
+                .map(|phase| {
+                    // The smallest x >= 0 with (x + pad_left) % sw == phase.
+                    let first = (phase + c.sw - c.pad[1] % c.sw) % c.sw;
+                    (first, phase * hp * wq + (first + c.pad[1]) / c.sw)
+                })
+                .collect(),
             hp,
             wq,
             buf_len: c.in_c * c.sw * hp * wq,
@@ -310,23 +345,14 @@ impl Geometry {
                 }
                 // Padded column c = x + pad_left lands in phase c % sw at c / sw: per phase,
                 // a strided read of the row and a contiguous write.
-                for phase in 0..sw {
-                    // First x of this phase: the smallest x >= 0 with (x + pad_left) % sw == phase.
-                    let first = (phase + sw - self.pad_left % sw) % sw;
-                    let q0 = (first + self.pad_left) / sw;
-                    let dst = &mut buf[base + phase * self.hp * self.wq + q0..];
+                for &(first, offset) in &self.phases {
+                    let dst = &mut buf[base + offset..];
                     for (d, &v) in dst.iter_mut().zip(row.iter().skip(first).step_by(sw)) {
                         *d = v;
                     }
                 }
             }
         }
-    }
-
-    /// Buffer offset of vector `v` (row-major over output rows, `vecs_per_row` per row).
-    fn vector_base(&self, v: usize) -> usize {
-        let (y, xv) = (v / self.vecs_per_row, v % self.vecs_per_row);
-        y * self.sh * self.wq + xv * LANES
     }
 }
 
@@ -364,16 +390,12 @@ impl Job<'_> {
     /// `OB` output channels x `N` vectors from vector `v0`: accumulate, then bias, added map,
     /// ReLU and store of the lanes inside the output row.
     fn block<const N: usize>(&self, ocb: usize, v0: usize, out: &mut [f32]) {
-        let bases: [usize; N] = std::array::from_fn(|j| self.geo.vector_base(v0 + j));
+        let bases: [usize; N] = std::array::from_fn(|j| self.geo.vectors[v0 + j].0);
         let per_block = self.geo.in_c * self.geo.taps.len() * OB;
         let weights = &self.packed[ocb * per_block..][..per_block];
         // Where each vector's lanes go in one output plane, and how many lie inside the row.
         let g = self.geo;
-        let dest: [(usize, usize); N] = std::array::from_fn(|j| {
-            let v = v0 + j;
-            let (y, x0) = (v / g.vecs_per_row, (v % g.vecs_per_row) * LANES);
-            (y * g.ow + x0, (g.ow - x0).min(LANES))
-        });
+        let dest: [(usize, usize, usize); N] = std::array::from_fn(|j| g.vectors[v0 + j].1);
         let plane = g.oh * g.ow;
         let epilogue = Epilogue {
             plane,
@@ -382,18 +404,24 @@ impl Job<'_> {
             bias: self.bias,
             map: self.add_map,
             relu: self.conv.relu,
+            shuffle: self.conv.shuffle,
+            ow: g.ow,
         };
         let mut acc = [[[0.0f32; LANES]; N]; OB];
         #[cfg(target_arch = "x86_64")]
         if simd_available() {
             // SAFETY: AVX2 and FMA are present (checked at run time); the function checks its
             // own bounds. It stores the vectors whose 8 lanes are all inside the row itself.
+            // The 3x3 and 1x1 tap loops get a constant trip count, so they unroll.
+            let (buf, bases, acc, dest) = (self.buf, &bases, &mut acc, &dest);
             unsafe {
-                accumulate_avx2::<N>(
-                    self.buf, weights, g, &bases, &mut acc, &epilogue, &dest, out,
-                )
+                match g.taps.len() {
+                    9 => accumulate_avx2::<N, 9>(buf, weights, g, bases, acc, &epilogue, dest, out),
+                    1 => accumulate_avx2::<N, 1>(buf, weights, g, bases, acc, &epilogue, dest, out),
+                    _ => accumulate_avx2::<N, 0>(buf, weights, g, bases, acc, &epilogue, dest, out),
+                }
             };
-            if dest.iter().all(|&(_, lanes)| lanes == LANES) {
+            if dest.iter().all(|&(_, lanes, _)| lanes == LANES) {
                 return;
             }
         } else {
@@ -407,13 +435,13 @@ impl Job<'_> {
             if oc >= self.conv.out_c {
                 break;
             }
-            for (row, &(at, lanes)) in rows.iter().zip(&dest) {
+            for (row, &(at, lanes, y)) in rows.iter().zip(&dest) {
                 if simd_stored && lanes == LANES {
                     continue;
                 }
-                let at = oc * plane + at;
-                for ((dst, &a), l) in out[at..][..lanes].iter_mut().zip(row).zip(0..) {
-                    *dst = epilogue.apply(a, oc, at + l);
+                let x0 = at - y * g.ow;
+                for (l, &a) in row[..lanes].iter().enumerate() {
+                    out[epilogue.dst(oc, y, x0 + l)] = epilogue.apply(a, oc, oc * plane + at + l);
                 }
             }
         }
@@ -428,9 +456,20 @@ struct Epilogue<'a> {
     bias: &'a [f32],
     map: Option<&'a [f32]>,
     relu: bool,
+    shuffle: bool,
+    ow: usize,
 }
 
 impl Epilogue<'_> {
+    /// Output index of channel `oc` at row `y`, column `x` of the convolution's plane.
+    fn dst(&self, oc: usize, y: usize, x: usize) -> usize {
+        if !self.shuffle {
+            return oc * self.plane + y * self.ow + x;
+        }
+        let (k, i, j) = (oc / 4, (oc / 2) % 2, oc % 2);
+        k * 4 * self.plane + (2 * y + i) * 2 * self.ow + 2 * x + j
+    }
+
     fn apply(&self, sum: f32, oc: usize, at: usize) -> f32 {
         let mut value = sum + self.bias[oc];
         if let Some(map) = self.map {
@@ -481,7 +520,8 @@ fn accumulate_scalar<const N: usize>(
 }
 
 /// [`accumulate_scalar`] with AVX2 + FMA: `OB * N` accumulators in registers, one unaligned
-/// load per vector and one broadcast per output channel for each input channel and tap.
+/// load per vector and one broadcast per output channel for each input channel and tap; `T`
+/// taps (0: as many as the geometry has).
 ///
 /// # Safety
 /// The CPU must support AVX2 and FMA.
@@ -489,18 +529,20 @@ fn accumulate_scalar<const N: usize>(
 #[allow(clippy::too_many_arguments, clippy::needless_range_loop)]
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
-unsafe fn accumulate_avx2<const N: usize>(
+unsafe fn accumulate_avx2<const N: usize, const T: usize>(
     buf: &[f32],
     weights: &[f32],
     g: &Geometry,
     bases: &[usize; N],
     acc: &mut [[[f32; LANES]; N]; OB],
     epilogue: &Epilogue,
-    dest: &[(usize, usize); N],
+    dest: &[(usize, usize, usize); N],
     out: &mut [f32],
 ) {
     use std::arch::x86_64::*;
-    let taps = g.taps.len();
+    // T taps when T > 0 (a constant trip count), all of them otherwise.
+    let taps = if T == 0 { g.taps.len() } else { T };
+    assert_eq!(taps, g.taps.len());
     // Every read below stays inside `buf` and `weights`: the furthest vector read starts at
     // the last channel's furthest tap plus the furthest base, and ends LANES floats later.
     let max_tap = g.taps.iter().copied().max().unwrap_or(0);
@@ -512,9 +554,10 @@ unsafe fn accumulate_avx2<const N: usize>(
     let mut wp = weights.as_ptr();
     for ic in 0..g.in_c {
         let channel = ic * g.channel_len();
-        for &tap in &g.taps {
+        for t in 0..taps {
             // SAFETY: in bounds by the asserts above.
             unsafe {
+                let tap = *g.taps.get_unchecked(t);
                 // No closures here: they would not inherit this function's target features.
                 let mut x = [_mm256_setzero_ps(); N];
                 for j in 0..N {
@@ -532,6 +575,11 @@ unsafe fn accumulate_avx2<const N: usize>(
     }
     // Epilogue: full vectors go straight to the output, partial ones to `acc` for the caller.
     let zero = _mm256_setzero_ps();
+    if epilogue.shuffle {
+        // SAFETY: AVX2 is present (this function's own requirement).
+        unsafe { store_shuffled::<N>(&a, acc, epilogue, dest, out) };
+        return;
+    }
     for o in 0..OB {
         let oc = epilogue.first_oc + o;
         if oc >= epilogue.out_c {
@@ -539,7 +587,7 @@ unsafe fn accumulate_avx2<const N: usize>(
         }
         let bias = _mm256_set1_ps(epilogue.bias[oc]);
         for j in 0..N {
-            let (at, lanes) = dest[j];
+            let (at, lanes, _) = dest[j];
             if lanes < LANES {
                 // SAFETY: `acc[o][j]` is LANES floats.
                 unsafe { _mm256_storeu_ps(acc[o][j].as_mut_ptr(), a[o][j]) };
@@ -562,6 +610,69 @@ unsafe fn accumulate_avx2<const N: usize>(
     }
 }
 
+/// The epilogue of a block fused with depth-to-space: the block's 4 channels are `4k + 2i + j`
+/// for one `k` (blocks of [`OB`] = 4, `out_c` a multiple of 4), so channels `j = 0, 1` of a row
+/// `i` interleave into 16 consecutive outputs of row `2y + i`.
+///
+/// # Safety
+/// The CPU must support AVX2.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[allow(clippy::needless_range_loop)]
+unsafe fn store_shuffled<const N: usize>(
+    a: &[[std::arch::x86_64::__m256; N]; OB],
+    acc: &mut [[[f32; LANES]; N]; OB],
+    epilogue: &Epilogue,
+    dest: &[(usize, usize, usize); N],
+    out: &mut [f32],
+) {
+    use std::arch::x86_64::*;
+    let zero = _mm256_setzero_ps();
+    let k = epilogue.first_oc / 4;
+    for j in 0..N {
+        let (at, lanes, y) = dest[j];
+        if lanes < LANES {
+            for o in 0..OB {
+                // SAFETY: `acc[o][j]` is LANES floats.
+                unsafe { _mm256_storeu_ps(acc[o][j].as_mut_ptr(), a[o][j]) };
+            }
+            continue;
+        }
+        let mut v = [zero; OB];
+        for o in 0..OB {
+            let oc = epilogue.first_oc + o;
+            v[o] = _mm256_add_ps(a[o][j], _mm256_set1_ps(epilogue.bias[oc]));
+            if let Some(map) = epilogue.map {
+                let m = oc * epilogue.plane + at;
+                assert!(m + LANES <= map.len());
+                // SAFETY: in bounds by the assert.
+                v[o] = _mm256_add_ps(v[o], unsafe { _mm256_loadu_ps(map.as_ptr().add(m)) });
+            }
+            if epilogue.relu {
+                v[o] = _mm256_max_ps(v[o], zero);
+            }
+        }
+        let x = at - y * epilogue.ow;
+        for i in 0..2 {
+            let row = k * 4 * epilogue.plane + (2 * y + i) * 2 * epilogue.ow + 2 * x;
+            assert!(row + 2 * LANES <= out.len());
+            let lo = _mm256_unpacklo_ps(v[2 * i], v[2 * i + 1]);
+            let hi = _mm256_unpackhi_ps(v[2 * i], v[2 * i + 1]);
+            // SAFETY: in bounds by the assert.
+            unsafe {
+                _mm256_storeu_ps(
+                    out.as_mut_ptr().add(row),
+                    _mm256_permute2f128_ps(lo, hi, 0x20),
+                );
+                _mm256_storeu_ps(
+                    out.as_mut_ptr().add(row + LANES),
+                    _mm256_permute2f128_ps(lo, hi, 0x31),
+                );
+            }
+        }
+    }
+}
+
 impl Op for DirectConv {
     fn name(&self) -> StaticName {
         "DirectConv".into()
@@ -569,7 +680,7 @@ impl Op for DirectConv {
 
     fn info(&self) -> TractResult<Vec<String>> {
         Ok(vec![format!(
-            "{}->{} {}x{} stride {}x{} pad {:?}{}{}",
+            "{}->{} {}x{} stride {}x{} pad {:?}{}{}{}",
             self.in_c,
             self.out_c,
             self.kh,
@@ -578,7 +689,12 @@ impl Op for DirectConv {
             self.sw,
             self.pad,
             if self.add_map.is_some() { " +map" } else { "" },
-            if self.relu { " relu" } else { "" }
+            if self.relu { " relu" } else { "" },
+            if self.shuffle {
+                " depth-to-space 2"
+            } else {
+                ""
+            }
         )])
     }
 
@@ -595,11 +711,11 @@ impl DirectConv {
             self.in_c
         );
         let (n, h, w) = (shape[0], shape[2], shape[3]);
-        let (oh, ow) = self.output_hw(h, w)?;
         let input = inputs[0].try_as_plain_ram()?;
         // SAFETY: f32 has no invalid bit patterns, and `run_with` writes every output element
         // (every channel, row and column) before anything reads it.
-        let mut out = unsafe { Tensor::uninitialized::<f32>(&[n, self.out_c, oh, ow])? };
+        let [c, oh, ow] = self.output_chw(h, w)?;
+        let mut out = unsafe { Tensor::uninitialized::<f32>(&[n, c, oh, ow])? };
         {
             let mut view = out.try_as_plain_ram_mut()?;
             self.run_with(
@@ -639,10 +755,10 @@ impl TypedOp for DirectConv {
         ensure!(shape.rank() == 4, "DirectConv input rank {}", shape.rank());
         let h = shape[2].to_usize()?;
         let w = shape[3].to_usize()?;
-        let (oh, ow) = self.output_hw(h, w)?;
+        let [c, oh, ow] = self.output_chw(h, w)?;
         Ok(tvec!(f32::fact([
             shape[0].clone(),
-            self.out_c.to_dim(),
+            c.to_dim(),
             oh.to_dim(),
             ow.to_dim()
         ])))
@@ -658,6 +774,8 @@ pub struct RewriteSummary {
     pub fused_adds: usize,
     /// ReLUs fused into them.
     pub fused_relus: usize,
+    /// Depth-to-space (pixel shuffle) chains fused into them.
+    pub fused_shuffles: usize,
 }
 
 /// Replaces every f32 `Conv` of a typed (not yet decluttered) model that [`DirectConv`] can run
@@ -667,7 +785,7 @@ pub struct RewriteSummary {
 pub fn rewrite_convolutions(model: &mut TypedModel) -> TractResult<RewriteSummary> {
     let mut summary = RewriteSummary::default();
     for id in model.eval_order()? {
-        let Some((op, last, fused_add, fused_relu)) = plan_replacement(model, id)? else {
+        let Some((op, last, fused)) = plan_replacement(model, id)? else {
             continue;
         };
         let mut patch = TypedModelPatch::default();
@@ -677,18 +795,27 @@ pub fn rewrite_convolutions(model: &mut TypedModel) -> TractResult<RewriteSummar
         patch.shunt_outside(model, OutletId::new(last, 0), out)?;
         patch.apply(model)?;
         summary.convolutions += 1;
-        summary.fused_adds += usize::from(fused_add);
-        summary.fused_relus += usize::from(fused_relu);
+        summary.fused_adds += usize::from(fused.add);
+        summary.fused_relus += usize::from(fused.relu);
+        summary.fused_shuffles += usize::from(fused.shuffle);
     }
     Ok(summary)
 }
 
+/// What was fused into one replacement.
+#[derive(Debug, Clone, Copy, Default)]
+struct Fused {
+    add: bool,
+    relu: bool,
+    shuffle: bool,
+}
+
 /// The replacement for node `id` if it is a convolution we run: the op, the last node it
-/// covers, and whether an add and a ReLU were fused.
+/// covers, and what was fused.
 fn plan_replacement(
     model: &TypedModel,
     id: usize,
-) -> TractResult<Option<(DirectConv, usize, bool, bool)>> {
+) -> TractResult<Option<(DirectConv, usize, Fused)>> {
     let node = model.node(id);
     let Some(conv) = node.op_as::<Conv>() else {
         return Ok(None);
@@ -754,13 +881,12 @@ fn plan_replacement(
         return Ok(None);
     }
     let mut last = id;
-    let mut fused_add = false;
-    let mut fused_relu = false;
+    let mut fused = Fused::default();
     if let Some((next, konst)) = sole_binary_consumer::<Add>(model, last)? {
-        if let Ok(fused) = op.clone().with_add(&konst, oh, ow) {
-            op = fused;
+        if let Ok(fused_op) = op.clone().with_add(&konst, oh, ow) {
+            op = fused_op;
             last = next;
-            fused_add = true;
+            fused.add = true;
         }
     }
     if let Some((next, konst)) = sole_binary_consumer::<Max>(model, last)? {
@@ -773,10 +899,82 @@ fn plan_replacement(
         if zero {
             op = op.with_relu();
             last = next;
-            fused_relu = true;
+            fused.relu = true;
         }
     }
-    Ok(Some((op, last, fused_add, fused_relu)))
+    if op.out_c % 4 == 0
+        && let Some(end) = depth_to_space_chain(model, last, op.out_c, oh, ow)?
+    {
+        op.shuffle = true;
+        last = end;
+        fused.shuffle = true;
+    }
+    Ok(Some((op, last, fused)))
+}
+
+/// The last node of the chain of axis ops after node `id` (output `[n, c, h, w]`) when the
+/// whole chain, each link the only consumer of the one before, is depth-to-space with block 2
+/// in CRD order (PyTorch's PixelShuffle(2)). tract's ONNX import writes DepthToSpace as such a
+/// chain of reshapes and axis moves; which order it encodes is checked here by running the
+/// chain on a tensor of indices, not by reading its ops.
+fn depth_to_space_chain(
+    model: &TypedModel,
+    id: usize,
+    c: usize,
+    h: usize,
+    w: usize,
+) -> TractResult<Option<usize>> {
+    let mut chain = vec![];
+    let mut cur = id;
+    loop {
+        let node = model.node(cur);
+        let outlet = OutletId::new(cur, 0);
+        if node.outputs.len() != 1
+            || node.outputs[0].successors.len() != 1
+            || model.output_outlets()?.contains(&outlet)
+        {
+            break;
+        }
+        let next = model.node(node.outputs[0].successors[0].node);
+        if next.op_as::<AxisOp>().is_none() || next.inputs.len() != 1 {
+            break;
+        }
+        chain.push(next.id);
+        cur = next.id;
+    }
+    let Some(&end) = chain.last() else {
+        return Ok(None);
+    };
+    let Ok(n) = model.outlet_fact(OutletId::new(id, 0))?.shape[0].to_usize() else {
+        return Ok(None);
+    };
+    let end_shape = &model.outlet_fact(OutletId::new(end, 0))?.shape;
+    let want = [n, c / 4, 2 * h, 2 * w];
+    if end_shape.as_concrete() != Some(&want[..]) {
+        return Ok(None);
+    }
+    let len = n * c * h * w;
+    let iota: Vec<f32> = (0..len).map(|i| i as f32).collect();
+    let mut value = Tensor::from_shape(&[n, c, h, w], &iota)?.into_tvalue();
+    for &link in &chain {
+        let Some(out) = model.node(link).op().eval_out_of_plan(tvec!(value))? else {
+            return Ok(None);
+        };
+        value = out[0].clone();
+    }
+    let got = value.try_as_plain_ram()?;
+    let got = got.as_slice::<f32>()?;
+    let plane = h * w;
+    for (dst, &v) in got.iter().enumerate() {
+        let (img, rest) = (dst / (c * plane), dst % (c * plane));
+        let (k, rest) = (rest / (4 * plane), rest % (4 * plane));
+        let (yy, xx) = (rest / (2 * w), rest % (2 * w));
+        let src = ((img * c + 4 * k + 2 * (yy % 2) + xx % 2) * h + yy / 2) * w + xx / 2;
+        if v != src as f32 {
+            return Ok(None);
+        }
+    }
+    Ok(Some(end))
 }
 
 /// The value of a wire that is a constant, or a cast of one (ONNX import casts biases; tract

@@ -2,13 +2,15 @@
 //! tract: a fully convolutional network turns a 64 x 32 overhead crop in front of an unloading
 //! target into a heatmap of the probability that the robot, sent to each cell, can unload there.
 //!
-//! The model is loaded once, its input shape fixed to one crop `[1, 1, 32, 64]`, optimised by
-//! tract, and then run without any allocation of ours: the input tensor is allocated at load time
-//! and refilled in place, results are copied into the caller's buffers. A batch (up to
-//! [`MAX_BATCH`], both sides of three targets) runs the one-crop plan per crop: tract's plans for
-//! batch > 1 of this network fall back to eager im2col and unfused adds and measured ~1.7x slower
-//! per crop than six single runs (docs/fcn.md), so batching buys nothing here. The uint8 -> float normalisation is part of the ONNX graph, so callers pass
-//! the crop exactly as `world::view::render_crop` returns it.
+//! The model is loaded once, one plan per batch size (1 to [`MAX_BATCH`], both sides of three
+//! targets) optimised by tract, and then run without any allocation of ours: the input tensors
+//! are allocated at load time and refilled in place, results are copied into the caller's
+//! buffers. The network's convolutions run as our own tract operator,
+//! [`direct_conv::DirectConv`], swapped into the graph after loading (the file and its weights
+//! are unchanged; tract's own lowering, Pad + im2col + small matrix products, measured ~2x slower
+//! on this network, docs/fcn.md); [`ConvBackend::Tract`] keeps tract's, for reference. The uint8
+//! -> float normalisation is part of the ONNX graph, so callers pass the crop exactly as
+//! `world::view::render_crop` returns it.
 //!
 //! ```no_run
 //! use fcn_infer::{FcnModel, CROP_CELLS};
@@ -201,7 +203,7 @@ impl std::fmt::Debug for FcnModel {
 }
 
 impl FcnModel {
-    /// Loads an ONNX file, checks its interface and prepares the optimised one-crop plan.
+    /// Loads an ONNX file, checks its interface and prepares the optimised plans.
     ///
     /// Before parsing: a file over [`MAX_MODEL_BYTES`] is refused without being read
     /// ([`ModelLoadError::TooLarge`]), and when the model's record (`<model>.json`, see

@@ -8,6 +8,7 @@ use fcn_infer::direct_conv::{RewriteSummary, rewrite_convolutions};
 use fcn_infer::{CROP_CELLS, ConvBackend, FcnModel, MAX_BATCH, pattern_crops};
 use tract_onnx::prelude::*;
 use tract_onnx::tract_core::ops::binary::TypedBinOp;
+use tract_onnx::tract_core::ops::change_axes::AxisOp;
 use tract_onnx::tract_core::ops::cnn::conv::{Conv, KernelFormat};
 use tract_onnx::tract_core::ops::cnn::{PaddingSpec, PoolSpec};
 use tract_onnx::tract_core::ops::math::{Add, Max};
@@ -87,7 +88,8 @@ fn committed_model_convolutions_are_all_replaced() {
         RewriteSummary {
             convolutions: 11,
             fused_adds: 1,
-            fused_relus: 5
+            fused_relus: 5,
+            fused_shuffles: 3
         }
     );
     let optimized = typed.into_optimized().unwrap();
@@ -95,8 +97,10 @@ fn committed_model_convolutions_are_all_replaced() {
         optimized
             .nodes()
             .iter()
-            .all(|n| !n.op().name().contains("MatMul") && n.op().name() != "Pad"),
-        "tract convolution left in the plan"
+            .all(|n| !n.op().name().contains("MatMul")
+                && n.op().name() != "Pad"
+                && n.op().name() != "MoveAxis"),
+        "tract convolution or depth-to-space left in the plan"
     );
 }
 
@@ -113,6 +117,8 @@ struct Case {
     pad_after: [usize; 2],
     add: bool,
     relu: bool,
+    /// Followed by tract's DepthToSpace(2, CRD) chain (as its ONNX import writes it).
+    shuffle: bool,
 }
 
 fn build(case: &Case, rng: &mut Rng) -> (TypedModel, Tensor) {
@@ -170,6 +176,28 @@ fn build(case: &Case, rng: &mut Rng) -> (TypedModel, Tensor) {
             .wire_node("relu", TypedBinOp(Box::new(Max), None), &[wire, zero])
             .unwrap()[0];
     }
+    if case.shuffle {
+        let (c, h, w) = (out_shape[1], out_shape[2], out_shape[3]);
+        for (ix, op) in [
+            AxisOp::Reshape(
+                1,
+                tvec!(c.to_dim()),
+                tvec!((c / 4).to_dim(), 2.to_dim(), 2.to_dim()),
+            ),
+            AxisOp::Move(3, 5),
+            AxisOp::Move(2, 3),
+            AxisOp::Reshape(
+                2,
+                tvec!(h.to_dim(), 2.to_dim(), w.to_dim(), 2.to_dim()),
+                tvec!((2 * h).to_dim(), (2 * w).to_dim()),
+            ),
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            wire = model.wire_node(format!("d2s.{ix}"), op, &[wire]).unwrap()[0];
+        }
+    }
     model.select_output_outlets(&[wire]).unwrap();
     let input: Vec<f32> = (0..case.n * case.in_c * case.h * case.w)
         .map(|_| rng.float())
@@ -209,7 +237,12 @@ fn single_convolutions_match_tract_on_random_data() {
                 {
                     continue;
                 }
-                let out_c = 1 + (rng.next() % 9) as usize;
+                let shuffle = rng.next() % 3 == 0;
+                let out_c = if shuffle {
+                    4 * (1 + (rng.next() % 3) as usize)
+                } else {
+                    1 + (rng.next() % 9) as usize
+                };
                 let in_c = 1 + (rng.next() % 7) as usize;
                 cases.push(Case {
                     n: 1 + (rng.next() % 3) as usize,
@@ -223,11 +256,13 @@ fn single_convolutions_match_tract_on_random_data() {
                     pad_after,
                     add: rng.next() % 2 == 0,
                     relu: rng.next() % 2 == 0,
+                    shuffle,
                 });
             }
         }
     }
     assert!(cases.len() > 40);
+    assert!(cases.iter().filter(|c| c.shuffle).count() > 5);
     for case in &cases {
         let (model, input) = build(case, &mut rng);
         let reference = run(model.clone(), &input);
@@ -236,11 +271,12 @@ fn single_convolutions_match_tract_on_random_data() {
         assert_eq!(summary.convolutions, 1);
         assert_eq!(summary.fused_adds, usize::from(case.add));
         assert_eq!(summary.fused_relus, usize::from(case.relu));
+        assert_eq!(summary.fused_shuffles, usize::from(case.shuffle));
         let direct = run(rewritten, &input);
         let diff = max_abs_diff(&reference, &direct);
         assert!(
             diff <= 1e-5,
-            "k {:?} s {:?} pad {:?}/{:?} {}x{} {}->{}: max |diff| {diff}",
+            "k {:?} s {:?} pad {:?}/{:?} {}x{} {}->{} shuffle {}: max |diff| {diff}",
             case.k,
             case.s,
             case.pad_before,
@@ -248,7 +284,8 @@ fn single_convolutions_match_tract_on_random_data() {
             case.h,
             case.w,
             case.in_c,
-            case.out_c
+            case.out_c,
+            case.shuffle
         );
     }
 }
