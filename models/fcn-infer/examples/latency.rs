@@ -1,13 +1,14 @@
 //! Latency harness: p50 / p99 of one crop and of a batch of 6 with tract on the calling thread.
 //!
-//! `cargo run --release -p fcn-infer --example latency -- models/psi-fcn.onnx 2000`
-//! prints one JSON object (microseconds); `models/bench/run_bench.py` runs it beside the
+//! `cargo run --release -p fcn-infer --example latency -- models/psi-fcn.onnx 2000 [direct|tract]`
+//! prints one JSON object (microseconds); the third argument picks how the convolutions run
+//! (`direct`, our operator, the default; `tract`, tract's own lowering); `models/bench/run_bench.py` runs it beside the
 //! onnxruntime harness and writes the side-by-side table into docs/fcn.md.
 
 use std::path::PathBuf;
 use std::time::Instant;
 
-use fcn_infer::{CROP_CELLS, FcnModel, MAX_BATCH};
+use fcn_infer::{CROP_CELLS, ConvBackend, FcnModel, MAX_BATCH};
 
 fn percentile(sorted: &[f64], q: f64) -> f64 {
     let idx = ((sorted.len() as f64 - 1.0) * q).round() as usize;
@@ -34,8 +35,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut args = std::env::args().skip(1);
     let path = PathBuf::from(args.next().unwrap_or_else(|| "models/psi-fcn.onnx".into()));
     let iters: usize = args.next().map(|s| s.parse()).transpose()?.unwrap_or(2000);
+    let backend = match args.next().as_deref() {
+        None | Some("direct") => ConvBackend::Direct,
+        Some("tract") => ConvBackend::Tract,
+        Some(other) => return Err(format!("backend {other}: expected direct or tract").into()),
+    };
     let t = Instant::now();
-    let mut model = FcnModel::load(&path)?;
+    let mut model = FcnModel::load_with(&path, backend)?;
     let load_ms = t.elapsed().as_secs_f64() * 1e3;
     let crops = fcn_infer::pattern_crops(MAX_BATCH);
     let mut one = [0f32; CROP_CELLS];
@@ -49,7 +55,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             .expect("predict_batch")
     });
     println!(
-        "{{\"runtime\": \"tract\", \"threads\": 1, \"iterations\": {iters}, \"load_ms\": {load_ms:.1}, \
+        "{{\"runtime\": \"tract\", \"convolutions\": \"{backend:?}\", \"threads\": 1, \"iterations\": {iters}, \"load_ms\": {load_ms:.1}, \
          \"batch1\": {{\"p50_us\": {p50_1:.2}, \"p99_us\": {p99_1:.2}, \"mean_us\": {mean_1:.2}}}, \
          \"batch6\": {{\"p50_us\": {p50_6:.2}, \"p99_us\": {p99_6:.2}, \"mean_us\": {mean_6:.2}}}}}"
     );

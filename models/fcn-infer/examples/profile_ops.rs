@@ -1,7 +1,8 @@
 //! Per-operator time of the optimised tract plan, to see where a model spends its microseconds.
 //!
-//! `cargo run --release -p fcn-infer --example profile_ops -- models/psi-fcn.onnx 1 2000`
-//! (model, batch size, iterations). Used to choose the architecture (docs/fcn.md).
+//! `cargo run --release -p fcn-infer --example profile_ops -- models/psi-fcn.onnx 1 2000 [direct|tract]`
+//! (model, batch size, iterations, how the convolutions run: our `DirectConv` operator, the
+//! default, or tract's own lowering). Used to choose the architecture (docs/fcn.md).
 
 use std::collections::BTreeMap;
 use std::time::Instant;
@@ -13,14 +14,27 @@ fn main() -> TractResult<()> {
     let path = args.next().unwrap_or_else(|| "models/psi-fcn.onnx".into());
     let batch: usize = args.next().map(|s| s.parse()).transpose()?.unwrap_or(1);
     let iters: usize = args.next().map(|s| s.parse()).transpose()?.unwrap_or(2000);
-    let model = tract_onnx::onnx()
+    let direct = match args.next().as_deref() {
+        None | Some("direct") => true,
+        Some("tract") => false,
+        Some(other) => {
+            return Err(TractError::msg(format!(
+                "backend {other}: expected direct or tract"
+            )));
+        }
+    };
+    let mut model = tract_onnx::onnx()
         .model_for_path(&path)?
         .with_input_fact(0, u8::fact([batch, 1, 32, 64]).into())?
-        .into_optimized()?;
+        .into_typed()?;
+    if direct {
+        fcn_infer::direct_conv::rewrite_convolutions(&mut model)?;
+    }
+    let model = model.into_optimized()?;
     let plan = model.into_runnable()?;
     let mut state = plan.spawn()?;
     let input: TValue = Tensor::zero::<u8>(&[batch, 1, 32, 64])?.into();
-    let mut per_node: BTreeMap<usize, (String, f64)> = BTreeMap::new();
+    let mut per_node: BTreeMap<usize, (String, Vec<f64>)> = BTreeMap::new();
     for i in 0..iters {
         let record = i >= iters / 10;
         state.run_plan_with_eval(tvec!(input.clone()), |ctx, op_state, node, inputs| {
@@ -29,8 +43,8 @@ fn main() -> TractResult<()> {
             if record {
                 let e = per_node
                     .entry(node.id)
-                    .or_insert_with(|| (format!("{} {}", node.name, node.op().name()), 0.0));
-                e.1 += t.elapsed().as_secs_f64() * 1e6;
+                    .or_insert_with(|| (format!("{} {}", node.name, node.op().name()), vec![]));
+                e.1.push(t.elapsed().as_secs_f64() * 1e6);
             }
             r
         })?;
@@ -44,17 +58,24 @@ fn main() -> TractResult<()> {
         })
         .collect();
     plain.sort_by(f64::total_cmp);
-    let n = (iters - iters / 10) as f64;
-    let total: f64 = per_node.values().map(|v| v.1).sum::<f64>() / n;
-    let mut rows: Vec<_> = per_node.into_values().collect();
+    // Per operator: the median over the recorded runs (robust to preemption on a shared
+    // machine), and the sum of those medians.
+    let mut rows: Vec<(String, f64)> = per_node
+        .into_values()
+        .map(|(name, mut us)| {
+            us.sort_by(f64::total_cmp);
+            (name, us[us.len() / 2])
+        })
+        .collect();
+    let total: f64 = rows.iter().map(|r| r.1).sum();
     rows.sort_by(|a, b| b.1.total_cmp(&a.1));
     println!(
-        "batch {batch}: {total:.1} us per run in operators (instrumented), plain run p50 {:.1} us, {} operators",
+        "batch {batch}: {total:.1} us per run in operators (sum of per-operator medians, instrumented), plain run p50 {:.1} us, {} operators",
         plain[plain.len() / 2],
         rows.len()
     );
     for (name, us) in rows {
-        println!("{:8.2} us  {name}", us / n);
+        println!("{us:8.2} us  {name}");
     }
     Ok(())
 }

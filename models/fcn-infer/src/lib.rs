@@ -2,13 +2,15 @@
 //! tract: a fully convolutional network turns a 64 x 32 overhead crop in front of an unloading
 //! target into a heatmap of the probability that the robot, sent to each cell, can unload there.
 //!
-//! The model is loaded once, its input shape fixed to one crop `[1, 1, 32, 64]`, optimised by
-//! tract, and then run without any allocation of ours: the input tensor is allocated at load time
-//! and refilled in place, results are copied into the caller's buffers. A batch (up to
-//! [`MAX_BATCH`], both sides of three targets) runs the one-crop plan per crop: tract's plans for
-//! batch > 1 of this network fall back to eager im2col and unfused adds and measured ~1.7x slower
-//! per crop than six single runs (docs/fcn.md), so batching buys nothing here. The uint8 -> float normalisation is part of the ONNX graph, so callers pass
-//! the crop exactly as `world::view::render_crop` returns it.
+//! The model is loaded once, one plan per batch size (1 to [`MAX_BATCH`], both sides of three
+//! targets) optimised by tract, and then run without any allocation of ours: the input tensors
+//! are allocated at load time and refilled in place, results are copied into the caller's
+//! buffers. The network's convolutions run as our own tract operator,
+//! [`direct_conv::DirectConv`], swapped into the graph after loading (the file and its weights
+//! are unchanged; tract's own lowering, Pad + im2col + small matrix products, measured ~2x slower
+//! on this network, docs/fcn.md); [`ConvBackend::Tract`] keeps tract's, for reference. The uint8
+//! -> float normalisation is part of the ONNX graph, so callers pass the crop exactly as
+//! `world::view::render_crop` returns it.
 //!
 //! ```no_run
 //! use fcn_infer::{FcnModel, CROP_CELLS};
@@ -30,6 +32,7 @@ use std::sync::Arc;
 use tract_onnx::prelude::*;
 use tract_onnx::tract_hir::infer::Factoid;
 
+pub mod direct_conv;
 pub mod overhead;
 mod record;
 
@@ -43,6 +46,17 @@ pub const CROP_COLS: usize = 64;
 pub const CROP_CELLS: usize = CROP_ROWS * CROP_COLS;
 /// Largest batch one call runs: both sides of three targets.
 pub const MAX_BATCH: usize = 6;
+
+/// How the network's convolutions run.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum ConvBackend {
+    /// Our [`direct_conv::DirectConv`] operator, swapped into the graph after loading (the
+    /// default: the same weights and, within float rounding, the same outputs, 2-3x faster).
+    #[default]
+    Direct,
+    /// tract's own lowering (Pad + im2col + packed matrix products): the reference.
+    Tract,
+}
 
 /// `count` deterministic gray-pattern crops (not scenes): the fixed inputs of the latency
 /// harnesses and benchmarks, so every timing tool feeds the model the same bytes.
@@ -170,6 +184,12 @@ pub enum InferError {
 /// refill in place.
 pub struct FcnModel {
     path: PathBuf,
+    /// One plan per batch size: `plans[b - 1]` runs `b` crops.
+    plans: Vec<Plan>,
+}
+
+/// A fixed-batch plan, its session state and the input tensor we refill in place.
+struct Plan {
     state: TypedSimpleState,
     input: Arc<Tensor>,
 }
@@ -183,7 +203,7 @@ impl std::fmt::Debug for FcnModel {
 }
 
 impl FcnModel {
-    /// Loads an ONNX file, checks its interface and prepares the optimised one-crop plan.
+    /// Loads an ONNX file, checks its interface and prepares the optimised plans.
     ///
     /// Before parsing: a file over [`MAX_MODEL_BYTES`] is refused without being read
     /// ([`ModelLoadError::TooLarge`]), and when the model's record (`<model>.json`, see
@@ -191,9 +211,14 @@ impl FcnModel {
     /// ([`ModelLoadError::ChecksumMismatch`], [`ModelLoadError::BadRecord`]). A model without
     /// a record loads unverified, with a warning.
     pub fn load(path: &Path) -> Result<FcnModel, ModelLoadError> {
+        Self::load_with(path, ConvBackend::default())
+    }
+
+    /// [`FcnModel::load`] with the convolutions run by `backend`.
+    pub fn load_with(path: &Path, backend: ConvBackend) -> Result<FcnModel, ModelLoadError> {
         let bytes = record::read_bounded(path, MAX_MODEL_BYTES)?;
         record::verify(path, &bytes)?;
-        Self::from_bytes(&bytes, path)
+        Self::from_bytes_with(&bytes, path, backend)
     }
 
     /// Like [`FcnModel::load`] from bytes already in memory; `origin` names them in errors.
@@ -203,8 +228,18 @@ impl FcnModel {
     /// fuzzing, `docs/fuzzing.md`), so a panic while reading, checking or preparing the model is
     /// caught and reported as [`ModelLoadError::Corrupt`].
     pub fn from_bytes(bytes: &[u8], origin: &Path) -> Result<FcnModel, ModelLoadError> {
+        Self::from_bytes_with(bytes, origin, ConvBackend::default())
+    }
+
+    /// [`FcnModel::from_bytes`] with the convolutions run by `backend`.
+    pub fn from_bytes_with(
+        bytes: &[u8],
+        origin: &Path,
+        backend: ConvBackend,
+    ) -> Result<FcnModel, ModelLoadError> {
         // Nothing outlives a panic: the partly built model is dropped while unwinding.
-        let load = std::panic::AssertUnwindSafe(|| Self::from_bytes_unguarded(bytes, origin));
+        let load =
+            std::panic::AssertUnwindSafe(|| Self::from_bytes_unguarded(bytes, origin, backend));
         std::panic::catch_unwind(load).unwrap_or_else(|panic| {
             let message = panic
                 .downcast_ref::<&str>()
@@ -218,7 +253,11 @@ impl FcnModel {
         })
     }
 
-    fn from_bytes_unguarded(bytes: &[u8], origin: &Path) -> Result<FcnModel, ModelLoadError> {
+    fn from_bytes_unguarded(
+        bytes: &[u8],
+        origin: &Path,
+        backend: ConvBackend,
+    ) -> Result<FcnModel, ModelLoadError> {
         let path = origin.to_path_buf();
         let model = tract_onnx::onnx()
             .model_for_read(&mut &bytes[..])
@@ -227,9 +266,22 @@ impl FcnModel {
                 reason: format!("{e:#}"),
             })?;
         check_declared_interface(&model, &path)?;
-        let (state, input) = prepare(&model, 1, &path)?;
-        log::info!("loaded FCN model {}", path.display());
-        Ok(FcnModel { path, state, input })
+        // With our convolutions, one plan per batch size: a batch runs as one (the elementwise
+        // and axis ops then run once per call). tract's own plans for batch > 1 of this network
+        // fall back to eager im2col and unfused adds, slower than single runs (docs/fcn.md), so
+        // with them the one-crop plan runs per crop, as before.
+        let batches = match backend {
+            ConvBackend::Direct => MAX_BATCH,
+            ConvBackend::Tract => 1,
+        };
+        let plans = (1..=batches)
+            .map(|batch| prepare(&model, batch, &path, backend))
+            .collect::<Result<Vec<_>, _>>()?;
+        log::info!(
+            "loaded FCN model {} ({backend:?} convolutions)",
+            path.display()
+        );
+        Ok(FcnModel { path, plans })
     }
 
     /// The file the model came from.
@@ -239,10 +291,11 @@ impl FcnModel {
 
     /// Psi for one crop: `out[row * 64 + col]` is the success probability of that cell.
     pub fn predict(&mut self, crop: &Crop, out: &mut HeatmapCells) -> Result<(), InferError> {
-        self.run_one(crop, out, 0)
+        self.run(std::slice::from_ref(crop), std::slice::from_mut(out))
     }
 
-    /// Psi for up to [`MAX_BATCH`] crops in one call (e.g. both sides of three targets).
+    /// Psi for up to [`MAX_BATCH`] crops in one call (e.g. both sides of three targets), run as
+    /// one batch.
     pub fn predict_batch(
         &mut self,
         crops: &[Crop],
@@ -257,33 +310,46 @@ impl FcnModel {
                 outputs: out.len(),
             });
         }
+        self.run(crops, out)
+    }
+
+    fn run(&mut self, crops: &[Crop], out: &mut [HeatmapCells]) -> Result<(), InferError> {
+        if crops.len() <= self.plans.len() {
+            return self.run_plan(crops, out, 0);
+        }
+        // Only the one-crop plan (tract's own convolutions): one run per crop.
         for (i, (crop, heat)) in crops.iter().zip(out.iter_mut()).enumerate() {
-            self.run_one(crop, heat, i)?;
+            self.run_plan(std::slice::from_ref(crop), std::slice::from_mut(heat), i)?;
         }
         Ok(())
     }
 
-    fn run_one(
+    /// Runs the plan for `crops.len()` crops; `first` is the first crop's index in the caller's
+    /// batch (for errors).
+    fn run_plan(
         &mut self,
-        crop: &Crop,
-        out: &mut HeatmapCells,
-        index: usize,
+        crops: &[Crop],
+        out: &mut [HeatmapCells],
+        first: usize,
     ) -> Result<(), InferError> {
+        let batch = crops.len();
+        let plan = &mut self.plans[batch - 1];
         // The input tensor is ours alone between calls (tract drops its handle at the end of a
         // run), so it is refilled in place; a fresh one is only made if that ever stops holding.
-        if Arc::get_mut(&mut self.input).is_none() {
-            self.input =
-                Arc::new(Tensor::zero::<u8>(&[1, 1, CROP_ROWS, CROP_COLS]).map_err(runtime)?);
+        if Arc::get_mut(&mut plan.input).is_none() {
+            plan.input =
+                Arc::new(Tensor::zero::<u8>(&[batch, 1, CROP_ROWS, CROP_COLS]).map_err(runtime)?);
         }
-        let input = Arc::get_mut(&mut self.input)
+        let input = Arc::get_mut(&mut plan.input)
             .ok_or_else(|| InferError::Runtime("input tensor shared".into()))?;
         let mut view = input.try_as_plain_ram_mut().map_err(runtime)?;
-        view.as_slice_mut::<u8>()
-            .map_err(runtime)?
-            .copy_from_slice(crop);
-        let outputs = self
+        let cells = view.as_slice_mut::<u8>().map_err(runtime)?;
+        for (dst, crop) in cells.chunks_exact_mut(CROP_CELLS).zip(crops) {
+            dst.copy_from_slice(crop);
+        }
+        let outputs = plan
             .state
-            .run(tvec!(TValue::from_const(self.input.clone())))
+            .run(tvec!(TValue::from_const(plan.input.clone())))
             .map_err(runtime)?;
         let heat = outputs
             .first()
@@ -292,24 +358,27 @@ impl FcnModel {
             .map_err(runtime)?
             .as_slice::<f32>()
             .map_err(runtime)?;
-        if heat.len() != CROP_CELLS {
+        if heat.len() != batch * CROP_CELLS {
             return Err(InferError::Runtime(format!(
-                "output has {} values, expected {CROP_CELLS}",
-                heat.len()
+                "output has {} values, expected {}",
+                heat.len(),
+                batch * CROP_CELLS
             )));
         }
-        if let Some((cell, &value)) = heat
+        if let Some((i, &value)) = heat
             .iter()
             .enumerate()
             .find(|(_, v)| !(0.0..=1.0).contains(*v))
         {
             return Err(InferError::NotAProbability {
-                crop: index,
-                cell,
+                crop: first + i / CROP_CELLS,
+                cell: i % CROP_CELLS,
                 value,
             });
         }
-        out.copy_from_slice(heat);
+        for (dst, src) in out.iter_mut().zip(heat.chunks_exact(CROP_CELLS)) {
+            dst.copy_from_slice(src);
+        }
         Ok(())
     }
 }
@@ -368,18 +437,24 @@ fn prepare(
     model: &InferenceModel,
     batch: usize,
     path: &Path,
-) -> Result<(TypedSimpleState, Arc<Tensor>), ModelLoadError> {
+    backend: ConvBackend,
+) -> Result<Plan, ModelLoadError> {
     let prep = |e: TractError| ModelLoadError::Prepare {
         path: path.to_path_buf(),
         batch,
         reason: format!("{e:#}"),
     };
     let shape = [batch, 1, CROP_ROWS, CROP_COLS];
-    let typed = model
+    let mut typed = model
         .clone()
         .with_input_fact(0, u8::fact(shape).into())
-        .and_then(|m| m.into_optimized())
+        .and_then(|m| m.into_typed())
         .map_err(prep)?;
+    if backend == ConvBackend::Direct {
+        let summary = direct_conv::rewrite_convolutions(&mut typed).map_err(prep)?;
+        log::debug!("batch {batch}: {summary:?}");
+    }
+    let typed = typed.into_optimized().map_err(prep)?;
     let out_fact = typed.output_fact(0).map_err(prep)?;
     let want: TVec<TDim> = shape.iter().map(|&d| d.to_dim()).collect();
     if out_fact.datum_type != f32::datum_type() || out_fact.shape.to_tvec() != want {
@@ -394,5 +469,5 @@ fn prepare(
     let runnable = typed.into_runnable().map_err(prep)?;
     let state = runnable.spawn().map_err(prep)?;
     let input = Arc::new(Tensor::zero::<u8>(&shape).map_err(prep)?);
-    Ok((state, input))
+    Ok(Plan { state, input })
 }
