@@ -29,3 +29,4 @@ pub mod methods;
 pub mod multi_trip;
 pub mod problem;
 pub mod task;
+pub mod trip_methods;
