@@ -50,7 +50,7 @@ pub const MAX_BLOCKS: usize = 100_000;
 pub const MAX_BLOCK_WORK: f64 = 3.0e7;
 /// Node limit of the branch and bound by default: 24 objects (k = 3) finish well within it, 36
 /// objects stop at it with their bound (docs/planner-bench.md).
-pub const DEFAULT_NODE_LIMIT: u64 = 20_000;
+pub const DEFAULT_NODE_LIMIT: u64 = 100_000;
 
 /// One trip: load `load_order` at the station, then unload in `unloads` order.
 #[derive(Debug, Clone, PartialEq, Eq, Hash)]
@@ -445,7 +445,7 @@ struct Block {
     /// Best `R sum F - legs` ending at the last goal.
     open: f64,
     open_steps: Vec<UnloadStep>,
-    /// `closed - sum of its objects' shares` (<= 0): the bound drop of choosing it.
+    /// `closed - lambda(A) - M` (<= 0): the bound drop of choosing it (see `Search::set_prices`).
     reduced: f64,
 }
 
@@ -643,6 +643,19 @@ fn best_block(
     }
 }
 
+/// Subgradient iterations of the dual prices.
+const DUAL_ITERATIONS: usize = 300;
+
+fn price_of(lambda: &[f64], set: u64) -> f64 {
+    let mut p = 0.0;
+    let mut rest = set;
+    while rest != 0 {
+        p += lambda[rest.trailing_zeros() as usize];
+        rest &= rest - 1;
+    }
+    p
+}
+
 /// The partition branch and bound.
 struct Search {
     n: usize,
@@ -651,7 +664,9 @@ struct Search {
     blocks: Vec<Block>,
     /// Per object: indices of the blocks whose lowest object it is, by `reduced` descending.
     by_lowest: Vec<Vec<u32>>,
-    /// Root bound: `sum of shares + largest saving`.
+    /// Largest saving `h - g` of any block.
+    max_saving: f64,
+    /// Root bound: `sum lambda + trips * M + largest saving` (see `set_prices`).
     root_bound: f64,
     max_nodes: u64,
     nodes: u64,
@@ -669,41 +684,25 @@ impl Search {
         n: usize,
         capacity: usize,
         trips: usize,
-        mut blocks: Vec<Block>,
+        blocks: Vec<Block>,
         limits: TripSearchLimits,
     ) -> Self {
-        let mut share = vec![f64::NEG_INFINITY; n];
         let mut max_saving: f64 = 0.0;
         for b in &blocks {
-            let per = b.closed / f64::from(b.set.count_ones());
-            for o in objects_of(b.set) {
-                share[o] = share[o].max(per);
-            }
             max_saving = max_saving.max(b.open - b.closed);
-        }
-        for b in &mut blocks {
-            b.reduced = b.closed - objects_of(b.set).iter().map(|&o| share[o]).sum::<f64>();
         }
         let mut by_lowest: Vec<Vec<u32>> = vec![Vec::new(); n];
         for (i, b) in blocks.iter().enumerate() {
             by_lowest[b.set.trailing_zeros() as usize].push(i as u32);
         }
-        for list in &mut by_lowest {
-            // Stable: equal bounds keep tabulation order (deterministic).
-            list.sort_by(|&a, &b| {
-                blocks[b as usize]
-                    .reduced
-                    .total_cmp(&blocks[a as usize].reduced)
-            });
-        }
-        let root_bound = share.iter().sum::<f64>() + max_saving;
-        Self {
+        let mut search = Self {
             n,
             capacity,
             trips,
             blocks,
             by_lowest,
-            root_bound,
+            max_saving,
+            root_bound: f64::INFINITY,
             max_nodes: limits.max_nodes.max(1),
             nodes: 0,
             aborted: false,
@@ -711,12 +710,209 @@ impl Search {
             best: Vec::new(),
             open_bound: f64::NEG_INFINITY,
             path: Vec::new(),
+        };
+        // Shares: each object's best per-object value, a first (weak) set of prices.
+        let mut share = vec![f64::NEG_INFINITY; n];
+        for b in &search.blocks {
+            let per = b.closed / f64::from(b.set.count_ones());
+            for o in objects_of(b.set) {
+                share[o] = share[o].max(per);
+            }
         }
+        search.set_prices(&share);
+        search
+    }
+
+    /// Prices `lambda` per object make the bound `sum lambda + trips * M + max saving`, with
+    /// `M = max over blocks of (g(A) - lambda(A))`: any partition into `trips` blocks has
+    /// `sum g = sum lambda + sum (g(A) - lambda(A)) <= sum lambda + trips * M` (the Lagrangian
+    /// relaxation of "every object in exactly one trip"). Re-sorts the children by their bound.
+    fn set_prices(&mut self, lambda: &[f64]) {
+        let m = self
+            .blocks
+            .iter()
+            .map(|b| b.closed - price_of(lambda, b.set))
+            .fold(f64::NEG_INFINITY, f64::max);
+        for b in &mut self.blocks {
+            b.reduced = b.closed - price_of(lambda, b.set) - m;
+        }
+        let blocks = &self.blocks;
+        for list in &mut self.by_lowest {
+            // Stable: equal bounds keep tabulation order (deterministic).
+            list.sort_by(|&a, &b| {
+                blocks[b as usize]
+                    .reduced
+                    .total_cmp(&blocks[a as usize].reduced)
+            });
+        }
+        self.root_bound = lambda.iter().sum::<f64>() + self.trips as f64 * m + self.max_saving;
+    }
+
+    /// `sum g` of a partition given as sets, if every set is a block.
+    fn partition_value(&self, index: &std::collections::HashMap<u64, u32>, sets: &[u64]) -> f64 {
+        let mut closed = 0.0;
+        let mut saving = f64::NEG_INFINITY;
+        for s in sets {
+            let b = &self.blocks[index[s] as usize];
+            closed += b.closed;
+            saving = saving.max(b.open - b.closed);
+        }
+        closed + saving
     }
 
     fn run(&mut self) {
+        // 1. A first dive (greedy by share) gives a plan.
+        let limit = self.max_nodes;
+        self.max_nodes = self.trips as u64;
         let root = self.root_bound;
         self.dfs(0, 0.0, root);
+        self.max_nodes = limit;
+        if self.best.is_empty() {
+            // Cannot happen (a dive always completes), but keep searching if it did.
+            self.aborted = false;
+            self.open_bound = f64::NEG_INFINITY;
+            self.dfs(0, 0.0, root);
+            return;
+        }
+        // 2. Improve it by exchanging objects between trips.
+        self.local_search();
+        // 3. Prices from the Lagrangian dual, by subgradient steps towards the plan's value.
+        let lambda = self.dual_prices();
+        self.set_prices(&lambda);
+        // 4. Branch and bound from the improved plan.
+        self.aborted = false;
+        self.open_bound = f64::NEG_INFINITY;
+        let root = self.root_bound;
+        if root > self.best_value + UTILITY_TIE_EPS {
+            self.dfs(0, 0.0, root);
+        }
+    }
+
+    /// Swaps (and, with trips of different sizes, moves) objects between two trips while that
+    /// raises `sum g + max saving`; first improvement, deterministic order.
+    fn local_search(&mut self) {
+        let index: std::collections::HashMap<u64, u32> = self
+            .blocks
+            .iter()
+            .enumerate()
+            .map(|(i, b)| (b.set, i as u32))
+            .collect();
+        let mut sets: Vec<u64> = self
+            .best
+            .iter()
+            .map(|&b| self.blocks[b as usize].set)
+            .collect();
+        let mut value = self.partition_value(&index, &sets);
+        let mut improved = true;
+        let mut rounds = 0;
+        while improved && rounds < 100 {
+            improved = false;
+            rounds += 1;
+            for i in 0..sets.len() {
+                for j in i + 1..sets.len() {
+                    for a in objects_of(sets[i]) {
+                        // Swaps with each object of the other trip, then a plain move.
+                        let mut options: Vec<(u64, u64)> = objects_of(sets[j])
+                            .into_iter()
+                            .map(|b| {
+                                let (ba, bb) = (1u64 << a, 1u64 << b);
+                                ((sets[i] & !ba) | bb, (sets[j] & !bb) | ba)
+                            })
+                            .collect();
+                        options.push((sets[i] & !(1u64 << a), sets[j] | (1u64 << a)));
+                        for (ni, nj) in options {
+                            if ni == 0
+                                || nj == 0
+                                || !index.contains_key(&ni)
+                                || !index.contains_key(&nj)
+                            {
+                                continue;
+                            }
+                            let (oi, oj) = (sets[i], sets[j]);
+                            sets[i] = ni;
+                            sets[j] = nj;
+                            let v = self.partition_value(&index, &sets);
+                            if v > value + 1e-9 {
+                                value = v;
+                                improved = true;
+                                break;
+                            }
+                            sets[i] = oi;
+                            sets[j] = oj;
+                        }
+                        if sets[i] & (1u64 << a) == 0 {
+                            // `a` left trip i: its object list is stale.
+                            break;
+                        }
+                    }
+                }
+            }
+        }
+        if value > self.best_value + UTILITY_TIE_EPS {
+            self.best_value = value;
+            let mut best: Vec<u32> = sets.iter().map(|s| index[s]).collect();
+            best.sort_by_key(|&b| self.blocks[b as usize].set.trailing_zeros());
+            self.best = best;
+        }
+    }
+
+    /// Subgradient descent on the Lagrangian bound `L(lambda) = sum lambda + T max_A (g(A) -
+    /// lambda(A))` (Polyak steps towards the best plan's `sum g`); returns the best prices seen.
+    fn dual_prices(&self) -> Vec<f64> {
+        let n = self.n;
+        let t = self.trips as f64;
+        let target = self.best_value - self.max_saving;
+        // Start from the shares (a feasible dual point: M <= 0).
+        let mut lambda: Vec<f64> = vec![f64::NEG_INFINITY; n];
+        for b in &self.blocks {
+            let per = b.closed / f64::from(b.set.count_ones());
+            for o in objects_of(b.set) {
+                lambda[o] = lambda[o].max(per);
+            }
+        }
+        let bound = |lambda: &[f64]| -> (f64, u64) {
+            let mut m = f64::NEG_INFINITY;
+            let mut arg = 0u64;
+            for b in &self.blocks {
+                let v = b.closed - price_of(lambda, b.set);
+                if v > m {
+                    m = v;
+                    arg = b.set;
+                }
+            }
+            (lambda.iter().sum::<f64>() + t * m, arg)
+        };
+        let mut best = lambda.clone();
+        let (mut best_l, _) = bound(&lambda);
+        let mut theta = 1.0;
+        let mut stale = 0;
+        for _ in 0..DUAL_ITERATIONS {
+            let (l, arg) = bound(&lambda);
+            if l < best_l - 1e-9 {
+                best_l = l;
+                best.copy_from_slice(&lambda);
+                stale = 0;
+            } else {
+                stale += 1;
+                if stale >= 20 {
+                    theta *= 0.5;
+                    stale = 0;
+                }
+            }
+            let gap = l - target;
+            if gap <= 1e-9 {
+                break;
+            }
+            // d L / d lambda_o = 1 - T [o in arg].
+            let inside = f64::from(arg.count_ones());
+            let norm2 = (n as f64 - inside) + inside * (1.0 - t).powi(2);
+            let step = theta * gap / norm2.max(1e-12);
+            for (o, l) in lambda.iter_mut().enumerate() {
+                let g = if arg & (1u64 << o) != 0 { 1.0 - t } else { 1.0 };
+                *l -= step * g;
+            }
+        }
+        best
     }
 
     /// Explores the node with `assigned` objects placed by the blocks on `self.path`, whose
