@@ -572,6 +572,38 @@ mod tests {
     }
 
     #[test]
+    fn a_small_suite_plans_and_executes_every_method() {
+        let cfg = SettingsEvalConfig {
+            settings: vec![2],
+            tables_per_size: 2,
+            ..SettingsEvalConfig::default()
+        };
+        let tasks = settings_tasks(&cfg).expect("tables");
+        let mut psi = psi_eval::heuristics::BinaryAnnulusEvaluator::new();
+        let records = run_settings(&cfg, &tasks, &mut psi).expect("runs");
+        assert_eq!(records.len(), 2 * cfg.methods.len());
+        for r in &records {
+            assert_eq!(r.objects, 6);
+            assert_eq!(r.trips, 2, "6 objects on a tray of 3");
+            assert!(r.placed <= r.objects);
+            assert_eq!(r.steps.split('|').count(), 6, "{}", r.steps);
+            assert!(r.time_s > 0.0 && r.gap >= 0.0);
+        }
+        let again = run_settings(&cfg, &tasks, &mut psi).expect("runs");
+        let key = |r: &SettingsRecord| (r.task, r.method, r.placed, r.time_s.to_bits());
+        assert_eq!(
+            records.iter().map(key).collect::<Vec<_>>(),
+            again.iter().map(key).collect::<Vec<_>>(),
+            "deterministic"
+        );
+        let md = settings_markdown(&cfg, &records);
+        assert!(
+            md.contains("2 place settings (6 objects") && md.contains("GROP"),
+            "{md}"
+        );
+    }
+
+    #[test]
     fn paired_differences() {
         let (m, ci) = paired(&[1.0, 3.0]);
         assert!((m - 2.0).abs() < 1e-12);

@@ -115,7 +115,10 @@ fn anytime_bound_holds_the_optimum() {
             let quick = optimise_trips(&t, 40.0, 3, TripSearchLimits { max_nodes }).unwrap();
             quick.plan.validate(12, 3).unwrap();
             if max_nodes == 1 {
-                assert!(!quick.proven_optimal, "one node cannot prove 12 objects optimal");
+                assert!(
+                    !quick.proven_optimal,
+                    "one node cannot prove 12 objects optimal"
+                );
             }
             assert!(quick.utility <= exact.utility + 1e-9);
             assert!(
