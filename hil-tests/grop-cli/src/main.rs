@@ -1,8 +1,8 @@
 //! `grop`: the command-line entry point of the GROP dinner-table controller.
 //!
 //! Every job is a subcommand in its own module (`cmd_*.rs`), each with `--help` and defaults:
-//! `grop demo`, `grop datagen`, `grop render`, `grop model-eval`, `grop eval`, `grop bench`,
-//! `grop hil`.
+//! `grop demo`, `grop datagen`, `grop render`, `grop model-eval`, `grop eval` (`--suite
+//! full-setting` for whole table settings), `grop bench`, `grop bench-settings`, `grop hil`.
 
 use clap::{Parser, Subcommand};
 
