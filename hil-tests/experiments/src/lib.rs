@@ -24,6 +24,7 @@
 //! and the arm can place it. A navigation that finds no path or ends in collision fails and counts
 //! [`EvalConfig::failed_nav_time_s`] (60 s). No replanning after a failure.
 
+pub mod full_setting;
 pub mod plot;
 
 use std::path::{Path, PathBuf};

@@ -45,6 +45,16 @@ pub enum Goals {
     Authors,
 }
 
+/// Which experiment `grop eval` runs.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Suite {
+    /// The paper's: 3-object tasks in the 30 evaluation scenes, Fig. 5 and Table I.
+    Paper,
+    /// Whole table settings (8 and 12 place settings), several trips with the robot's tray
+    /// (`crate::cmd_eval_settings`).
+    FullSetting,
+}
+
 /// Arguments of `grop eval`.
 #[derive(clap::Args, Debug)]
 pub struct Args {
@@ -112,6 +122,16 @@ pub struct Args {
     /// Trials per cell of the ground truth and the oracle.
     #[arg(long, default_value_t = 5)]
     pub trials_per_cell: u16,
+    /// The experiment: the paper's, or whole table settings (results in
+    /// `<out-dir>/full-setting`, `--write-docs` to docs/experiments/full-setting).
+    #[arg(long, value_enum, default_value_t = Suite::Paper)]
+    pub suite: Suite,
+    /// Full-setting suite: tables per size.
+    #[arg(long, default_value_t = 10)]
+    pub tables_per_size: usize,
+    /// Full-setting suite: table sizes in place settings, comma-separated (1..=12).
+    #[arg(long, value_delimiter = ',', default_value = "8,12")]
+    pub place_settings: Vec<usize>,
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
@@ -155,6 +175,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         },
         ..cfg.planner
     };
+    if args.suite == Suite::FullSetting {
+        return crate::cmd_eval_settings::run(&args, &robot, cfg.methods.clone(), cfg.planner);
+    }
     cfg.check()?;
 
     let workload = Workload::build(&cfg);

@@ -1,16 +1,18 @@
 //! `grop`: the command-line entry point of the GROP dinner-table controller.
 //!
 //! Every job is a subcommand in its own module (`cmd_*.rs`), each with `--help` and defaults:
-//! `grop demo`, `grop datagen`, `grop render`, `grop model-eval`, `grop eval`, `grop bench`,
-//! `grop hil`.
+//! `grop demo`, `grop datagen`, `grop render`, `grop model-eval`, `grop eval` (`--suite
+//! full-setting` for whole table settings), `grop bench`, `grop bench-settings`, `grop hil`.
 
 use clap::{Parser, Subcommand};
 
 mod cmd_bench;
+mod cmd_bench_settings;
 mod cmd_datagen;
 mod cmd_demo;
 mod cmd_demo_closed_loop;
 mod cmd_eval;
+mod cmd_eval_settings;
 mod cmd_hil;
 mod cmd_latency;
 mod cmd_model_eval;
@@ -43,6 +45,9 @@ enum Command {
     Eval(cmd_eval::Args),
     /// Benchmarks: writes medians and p99 to docs/.
     Bench(cmd_bench::Args),
+    /// Whole table settings (24 and 36 objects, several trips): decision latency and the gap to
+    /// the optimum; writes out/settings-bench.md (docs/settings-bench.md with --write-docs).
+    BenchSettings(cmd_bench_settings::Args),
     /// Evaluation tasks in closed loop (world + onboard processes) next to `grop eval`'s
     /// calculation of the same tasks, paired.
     Hil(cmd_hil::Args),
@@ -64,6 +69,7 @@ fn main() -> std::process::ExitCode {
         Command::ModelEval(a) => cmd_model_eval::run(a),
         Command::Eval(a) => cmd_eval::run(a),
         Command::Bench(a) => cmd_bench::run(a),
+        Command::BenchSettings(a) => cmd_bench_settings::run(a),
         Command::Hil(a) => cmd_hil::run(a),
         Command::Replay(a) => cmd_replay::run(a),
         Command::Latency(a) => cmd_latency::run(a),

@@ -26,5 +26,7 @@ pub mod arm;
 pub mod costs;
 pub mod feasibility;
 pub mod methods;
+pub mod multi_trip;
 pub mod problem;
 pub mod task;
+pub mod trip_methods;

@@ -27,7 +27,8 @@ use world::generate::mix_seed;
 use crate::costs::{LegCache, NavNode, StraightLine, TravelTime};
 use crate::problem::{CANDIDATE_CELLS, ProblemError, TaskProblem, UnloadLocation, candidate_index};
 use crate::task::{
-    PlanningTable, TaskPlan, TaskPlanError, UnloadStep, location_index, optimise, satisficing_plans,
+    MAX_OBJECTS, PlanningTable, TaskPlan, TaskPlanError, UnloadStep, location_index, optimise,
+    satisficing_plans,
 };
 
 /// The planning methods compared in the paper.
@@ -364,7 +365,7 @@ impl Planner {
         Self { kind, config }
     }
 
-    fn check_config(&self) -> Result<(), PlanError> {
+    pub(crate) fn check_config(&self) -> Result<(), PlanError> {
         let c = &self.config;
         if !(c.success_bonus_r.is_finite() && c.success_bonus_r >= 0.0) {
             return Err(PlanError::Config("success_bonus_r must be finite and >= 0"));
@@ -381,12 +382,12 @@ impl Planner {
         Ok(())
     }
 
-    fn heat_of(&self, loc: &UnloadLocation) -> [f32; CANDIDATE_CELLS] {
+    pub(crate) fn heat_of(&self, loc: &UnloadLocation) -> [f32; CANDIDATE_CELLS] {
         location_heat(self.kind, &self.config, loc)
     }
 
     /// Chooses the navigation goal of one location (Algorithm 1, line 10 for GROP).
-    fn choose_goal(&self, index: usize, loc: &UnloadLocation, seed: u64) -> NavGoal {
+    pub(crate) fn choose_goal(&self, index: usize, loc: &UnloadLocation, seed: u64) -> NavGoal {
         let mut rng = ChaCha8Rng::seed_from_u64(mix_seed(seed, GOAL_STREAM, index as u64));
         let (cell, source) = match (self.kind, self.config.baseline_goals) {
             (MethodKind::Grop, _) => {
@@ -504,6 +505,15 @@ impl TaskMotionPlanner for Planner {
         problem.check()?;
         self.check_config()?;
         let n = problem.n_objects();
+        if n > MAX_OBJECTS {
+            // One trip: the single-trip domain's bit sets and exact optimiser stop here; more
+            // objects are the multi-trip planner's (`crate::multi_trip`).
+            return Err(TaskPlanError::TooManyObjects {
+                n_objects: n,
+                limit: MAX_OBJECTS,
+            }
+            .into());
+        }
         let cfg = self.config;
         let m = 2 * n;
 

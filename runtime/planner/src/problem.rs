@@ -10,7 +10,12 @@ use world::view::{CANDIDATE_COLS, CANDIDATE_ROWS, cell_center_world, render_crop
 use world::{BasePose, Heatmap, RobotConfig, Scene, Side, base_collides};
 
 use crate::feasibility::{FeasibilityError, FeasibilityEvaluator, FeasibilityQuery};
-use crate::task::{MAX_OBJECTS, ObjectId, location_index};
+use crate::task::{ObjectId, location_index};
+
+/// Most objects a [`TaskProblem`] holds: 12 place settings of 3 items (issue 13). The
+/// single-trip planners ([`crate::methods::Planner`]) plan at most
+/// [`crate::task::MAX_OBJECTS`] of them; the multi-trip planner ([`crate::multi_trip`]) all.
+pub const MAX_PROBLEM_OBJECTS: usize = 36;
 
 /// Cells in the candidate area (the paper's 24 x 8 px).
 pub const CANDIDATE_CELLS: usize = 192;
@@ -133,7 +138,7 @@ pub enum ProblemError {
     #[error("the task has no unloading targets")]
     NoTargets,
     /// More targets than the planner handles.
-    #[error("{0} unloading targets; at most {MAX_OBJECTS} are supported")]
+    #[error("{0} unloading targets; at most {MAX_PROBLEM_OBJECTS} are supported")]
     TooManyTargets(usize),
     /// A target coordinate is NaN or infinite.
     #[error("unloading target {index} has a non-finite coordinate")]
@@ -160,7 +165,7 @@ impl TaskProblem {
         &self.locations[location_index(object, side)]
     }
 
-    /// Checks the shape: at least one object, at most [`MAX_OBJECTS`], locations in order.
+    /// Checks the shape: at least one object, at most [`MAX_PROBLEM_OBJECTS`], locations in order.
     pub fn check(&self) -> Result<(), ProblemError> {
         if self.locations.is_empty() {
             return Err(ProblemError::NoTargets);
@@ -168,7 +173,7 @@ impl TaskProblem {
         if self.locations.len() % 2 != 0 {
             return Err(ProblemError::LocationOrder);
         }
-        if self.n_objects() > MAX_OBJECTS {
+        if self.n_objects() > MAX_PROBLEM_OBJECTS {
             return Err(ProblemError::TooManyTargets(self.n_objects()));
         }
         for (i, l) in self.locations.iter().enumerate() {
@@ -247,7 +252,7 @@ fn check_targets(targets: &[[f64; 3]]) -> Result<(), ProblemError> {
     if targets.is_empty() {
         return Err(ProblemError::NoTargets);
     }
-    if targets.len() > MAX_OBJECTS {
+    if targets.len() > MAX_PROBLEM_OBJECTS {
         return Err(ProblemError::TooManyTargets(targets.len()));
     }
     if let Some(index) = targets

@@ -28,6 +28,7 @@ pub mod geometry;
 pub mod nav;
 pub mod robot;
 pub mod scene;
+pub mod table_settings;
 pub mod view;
 
 pub use collision::base_collides;

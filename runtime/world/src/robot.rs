@@ -41,6 +41,20 @@ pub struct RobotConfig {
     /// How base collisions are decided in trials; default the real footprint (the paper).
     #[serde(default)]
     pub base_collision: BaseCollisionModel,
+    /// Objects the base carries at once (its tray): a plan for more objects makes several trips
+    /// to the loading station. Optional in the file; default [`DEFAULT_CARRY_CAPACITY`] (a tray
+    /// of 3, one place setting), at most [`MAX_CARRY_CAPACITY`].
+    #[serde(default = "default_carry_capacity")]
+    pub carry_capacity: u32,
+}
+
+/// The tray of the default robot: 3 objects (one place setting).
+pub const DEFAULT_CARRY_CAPACITY: u32 = 3;
+/// Most objects a robot file may claim to carry at once (the runtime's task masks hold 64).
+pub const MAX_CARRY_CAPACITY: u32 = 64;
+
+fn default_carry_capacity() -> u32 {
+    DEFAULT_CARRY_CAPACITY
 }
 
 /// How the trial simulator decides whether the realised base pose collides.
@@ -109,6 +123,7 @@ impl Default for RobotConfig {
             nav_noise_sigma_m: 0.1,
             success_bonus_r: 40.0,
             base_collision: BaseCollisionModel::Footprint,
+            carry_capacity: DEFAULT_CARRY_CAPACITY,
         }
     }
 }
@@ -286,6 +301,15 @@ impl RobotConfig {
             return Err(InvalidField::new(
                 "base_collision.radius_m",
                 format!("must be positive, found {radius_m}"),
+            ));
+        }
+        if self.carry_capacity == 0 || self.carry_capacity > MAX_CARRY_CAPACITY {
+            return Err(InvalidField::new(
+                "carry_capacity",
+                format!(
+                    "must be in 1..={MAX_CARRY_CAPACITY}, found {}",
+                    self.carry_capacity
+                ),
             ));
         }
         if self.footprint.length_m > 3.0 || self.footprint.width_m > 3.0 {

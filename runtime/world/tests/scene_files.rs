@@ -225,6 +225,13 @@ fn bad_robot_files_name_the_field() {
     let msg = robot_error(&good.replacen("format_version = 1", "format_version = 7", 1));
     assert!(msg.contains("format_version"), "{msg}");
 
+    let msg = robot_error(&good.replacen("carry_capacity = 3", "carry_capacity = 0", 1));
+    assert!(msg.contains("carry_capacity"), "{msg}");
+    let without = good.replacen("carry_capacity = 3\n", "", 1);
+    assert_ne!(without, good, "the default file names carry_capacity");
+    let robot = RobotConfig::from_toml_str(&without, "old.toml").expect("capacity is optional");
+    assert_eq!(robot.carry_capacity, 3);
+
     let mut far_mount = RobotConfig::default();
     far_mount.place.mount.forward_m = 2.0;
     let msg = robot_error(&far_mount.to_toml_string().expect("serialises"));
