@@ -391,8 +391,7 @@ fn failed_unload_is_answered_with_the_grop_plus_retry() {
 
     let mut failed = first_steps[3];
     let mut tried: Vec<(f64, f64)> = Vec::new();
-    let mut request_id = 2;
-    for retry in 0..=max_retries {
+    for (request_id, retry) in (2u64..).zip(0..=max_retries) {
         let pose = [failed.x_m + 0.03, failed.y_m - 0.02, failed.yaw_rad];
         let mut failure = request(request_id, ReplanReason::UnloadFailed, pose, 0b111);
         failure.failed_object = failed.object_index;
@@ -459,7 +458,6 @@ fn failed_unload_is_answered_with_the_grop_plus_retry() {
                 return;
             }
         }
-        request_id += 1;
     }
     panic!("the retry budget was never spent");
 }
