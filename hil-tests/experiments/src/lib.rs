@@ -1413,8 +1413,10 @@ mod tests {
     fn runs_cover_main_and_sweep_once() {
         let cfg = EvalConfig::default();
         let runs = cfg.runs();
-        assert_eq!(runs.len(), 5 + 2 * 3);
+        // Six methods at 0.4 m/s; GROP+, GROP, PETLON and DVH also at 0.2 and 0.8 m/s.
+        assert_eq!(runs.len(), 6 + 2 * 4);
         assert!(runs.contains(&(0.2, MethodKind::Dvh)));
+        assert!(runs.contains(&(0.8, MethodKind::GropPlus)));
         assert!(!runs.contains(&(0.2, MethodKind::Satisficing)));
     }
 
