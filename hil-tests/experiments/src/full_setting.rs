@@ -285,7 +285,11 @@ pub fn execute_trips(
             None => {
                 // Cannot reach the station: this trip's objects stay there.
                 time_s += cfg.failed_nav_time_s;
-                steps.extend(trip.unloads.iter().map(|u| (u.object, StepOutcome::NoPath)));
+                steps.extend(
+                    trip.unloads
+                        .iter()
+                        .map(|u| (u.object, vec![StepOutcome::NoPath])),
+                );
                 continue;
             }
         }
@@ -295,7 +299,7 @@ pub fn execute_trips(
             let target = problem.location(u.object, u.side).target;
             let Some(path) = grid.plan(at, goal.xy) else {
                 time_s += cfg.failed_nav_time_s;
-                steps.push((u.object, StepOutcome::NoPath));
+                steps.push((u.object, vec![StepOutcome::NoPath]));
                 continue;
             };
             let outcome = sim.run(target, u.side, goal.xy, rng);
@@ -304,7 +308,7 @@ pub fn execute_trips(
                 TrialResult::BaseCollision => {
                     time_s += cfg.failed_nav_time_s;
                     distance_m += path.length_m;
-                    steps.push((u.object, StepOutcome::BaseCollision));
+                    steps.push((u.object, vec![StepOutcome::BaseCollision]));
                     at = goal.xy;
                 }
                 result => {
@@ -313,17 +317,20 @@ pub fn execute_trips(
                     distance_m += path.length_m + end_leg;
                     if result == TrialResult::Success {
                         placed += 1;
-                        steps.push((u.object, StepOutcome::Placed));
+                        steps.push((u.object, vec![StepOutcome::Placed]));
                     } else {
-                        steps.push((u.object, StepOutcome::ArmFailure));
+                        steps.push((u.object, vec![StepOutcome::ArmFailure]));
                     }
                     at = realised;
                 }
             }
         }
     }
+    // No retries here: over trips, a failed object stays on the tray (GROP+'s retry policy is
+    // the single-trip executor's).
     crate::Execution {
         steps,
+        retries: 0,
         placed,
         time_s,
         distance_m,

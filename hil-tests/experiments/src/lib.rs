@@ -22,7 +22,10 @@
 //! for each unloading step drive (A* path at the robot's speed) to the commanded goal, where the
 //! base ends at goal + N(0, sigma^2 I); the object is placed iff the realised base is collision-free
 //! and the arm can place it. A navigation that finds no path or ends in collision fails and counts
-//! [`EvalConfig::failed_nav_time_s`] (60 s). No replanning after a failure.
+//! [`EvalConfig::failed_nav_time_s`] (60 s). No replanning after a failure, except GROP+'s
+//! retries ([`planner::grop_plus::retry_goal`]): each retry is one more attempt of the trial
+//! simulator ([`trial_sim::retry`]), with the same noise model and its own travel and unloading
+//! time.
 
 pub mod full_setting;
 pub mod plot;
@@ -31,6 +34,7 @@ use std::path::{Path, PathBuf};
 
 use planner::costs::GridTravelTime;
 use planner::feasibility::{FeasibilityError, FeasibilityEvaluator, FeasibilityQuery};
+use planner::grop_plus::retry_goal;
 use planner::methods::{
     MethodKind, PlanError, PlannedTask, Planner, PlannerConfig, TaskMotionPlanner,
 };
@@ -39,6 +43,7 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
+use trial_sim::retry::{Attempt, AttemptCosts, unload_with_retries};
 use trial_sim::{TrialResult, TrialSimulator, ground_truth_heatmap};
 use world::generate::{evaluation_suite, mix_seed};
 use world::nav::OccupancyGrid;
@@ -92,7 +97,12 @@ impl Default for EvalConfig {
             methods: MethodKind::ALL.to_vec(),
             main_speed_mps: 0.4,
             sweep_speeds_mps: vec![0.2, 0.4, 0.8],
-            sweep_methods: vec![MethodKind::Grop, MethodKind::Petlon, MethodKind::Dvh],
+            sweep_methods: vec![
+                MethodKind::GropPlus,
+                MethodKind::Grop,
+                MethodKind::Petlon,
+                MethodKind::Dvh,
+            ],
             planner: PlannerConfig::for_robot(&robot),
             // 3 x 3 s + 3 x 5 s = 24 s of manipulation per task: what Table I's times imply
             // (t = D / v + M at the three speeds gives M ~ 24 s for GROP).
@@ -549,8 +559,11 @@ pub enum StepOutcome {
 /// The execution of one plan in the simulator.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Execution {
-    /// One outcome per unloading step, in plan order.
-    pub steps: Vec<(usize, StepOutcome)>,
+    /// One outcome per unloading step, in plan order: (object, outcome of each attempt; more
+    /// than one only when GROP+ retried).
+    pub steps: Vec<(usize, Vec<StepOutcome>)>,
+    /// Retries made (GROP+).
+    pub retries: usize,
     /// Objects placed.
     pub placed: usize,
     /// Total time: navigation + manipulation + failure charges (s).
@@ -560,7 +573,9 @@ pub struct Execution {
 }
 
 /// Executes a planned task: noisy navigation to each commanded goal, then the placing check of the
-/// trial simulator. `rng` draws the navigation noise.
+/// trial simulator. `rng` draws the navigation noise. With `retry` (GROP+'s planner settings), a
+/// failed unload is retried where [`planner::grop_plus::retry_goal`] says, at most
+/// `retry.plus.max_retries` times per object.
 #[allow(clippy::too_many_arguments)]
 pub fn execute(
     cfg: &EvalConfig,
@@ -569,6 +584,7 @@ pub fn execute(
     grid: &OccupancyGrid,
     problem: &TaskProblem,
     planned: &PlannedTask,
+    retry: Option<&PlannerConfig>,
     rng: &mut ChaCha8Rng,
 ) -> Execution {
     let speed = robot.speed_mps;
@@ -586,10 +602,11 @@ pub fn execute(
             // Cannot reach the station: nothing is loaded, nothing placed.
             time_s += cfg.failed_nav_time_s;
             for u in &planned.plan.unloads {
-                steps.push((u.object, StepOutcome::NoPath));
+                steps.push((u.object, vec![StepOutcome::NoPath]));
             }
             return Execution {
                 steps,
+                retries: 0,
                 placed: 0,
                 time_s,
                 distance_m,
@@ -598,44 +615,69 @@ pub fn execute(
     }
     time_s += cfg.load_time_s * planned.plan.load_order.len() as f64;
     let mut sim = TrialSimulator::new(scene, robot);
+    let costs = AttemptCosts {
+        speed_mps: speed,
+        unload_time_s: cfg.unload_time_s,
+        failed_nav_time_s: cfg.failed_nav_time_s,
+    };
+    let max_retries = retry.map_or(0, |c| c.plus.max_retries);
+    let mut travel = GridTravelTime::new(grid, speed);
     let mut placed = 0;
+    let mut retries = 0;
     for u in &planned.plan.unloads {
         let goal = planned.goal_of(u);
         let target = problem.location(u.object, u.side).target;
-        let Some(path) = grid.plan(at, goal.xy) else {
-            time_s += cfg.failed_nav_time_s;
-            steps.push((u.object, StepOutcome::NoPath));
-            continue;
-        };
-        let outcome = sim.run(target, u.side, goal.xy, rng);
-        let realised = (outcome.realised.x_m, outcome.realised.y_m);
-        match outcome.result {
-            TrialResult::BaseCollision => {
-                time_s += cfg.failed_nav_time_s;
-                distance_m += path.length_m;
-                steps.push((u.object, StepOutcome::BaseCollision));
-                at = goal.xy;
-            }
-            result => {
-                // The noisy end point: the robot drove the path and ended off the goal.
-                let end_leg = (realised.0 - goal.xy.0).hypot(realised.1 - goal.xy.1);
-                time_s += (path.length_m + end_leg) / speed + cfg.unload_time_s;
-                distance_m += path.length_m + end_leg;
-                if result == TrialResult::Success {
-                    placed += 1;
-                    steps.push((u.object, StepOutcome::Placed));
-                } else {
-                    steps.push((u.object, StepOutcome::ArmFailure));
-                }
-                at = realised;
-            }
+        let log = unload_with_retries(
+            &mut sim,
+            target,
+            (u.side, goal.xy),
+            at,
+            &costs,
+            max_retries,
+            |from, to| grid.plan(from, to).map(|p| p.length_m),
+            |attempts, at_xy| {
+                let config = retry?;
+                let tried: Vec<(f64, f64)> = attempts.iter().map(|a| a.commanded_xy).collect();
+                retry_goal(
+                    config,
+                    problem,
+                    u.object,
+                    &tried,
+                    at_xy,
+                    attempts.len() - 1,
+                    &mut travel,
+                )
+                .map(|g| (problem.locations[g.location].side, g.xy))
+            },
+            rng,
+        );
+        time_s += log.time_s;
+        distance_m += log.distance_m;
+        at = log.end_xy;
+        retries += log.attempts.len() - 1;
+        if log.placed {
+            placed += 1;
         }
+        steps.push((
+            u.object,
+            log.attempts.iter().map(step_outcome).collect::<Vec<_>>(),
+        ));
     }
     Execution {
         steps,
+        retries,
         placed,
         time_s,
         distance_m,
+    }
+}
+
+fn step_outcome(attempt: &Attempt) -> StepOutcome {
+    match attempt.outcome.map(|o| o.result) {
+        None => StepOutcome::NoPath,
+        Some(TrialResult::Success) => StepOutcome::Placed,
+        Some(TrialResult::BaseCollision) => StepOutcome::BaseCollision,
+        Some(_) => StepOutcome::ArmFailure,
     }
 }
 
@@ -670,7 +712,10 @@ pub struct TaskRecord {
     pub predicted_cost_s: f64,
     /// Navigation motion-planner calls to decide.
     pub motion_planner_calls: usize,
-    /// Step outcomes, `object:outcome` joined by `|`.
+    /// Retries after failed unloads (GROP+).
+    pub retries: usize,
+    /// Step outcomes, `object:outcome` joined by `|`; a retried step lists its attempts'
+    /// outcomes joined by `>`.
     pub steps: String,
 }
 
@@ -721,7 +766,10 @@ pub fn run(
                         source,
                     })?;
                 let mut rng = ChaCha8Rng::seed_from_u64(mix_seed(cfg.seed, task.id as u64, 0x6578));
-                let exec = execute(cfg, scene, &robot, grid, &problem, &planned, &mut rng);
+                let retry = (method == MethodKind::GropPlus).then_some(&pcfg);
+                let exec = execute(
+                    cfg, scene, &robot, grid, &problem, &planned, retry, &mut rng,
+                );
                 out.push(TaskRecord {
                     task: task.id,
                     scene: task.scene,
@@ -737,16 +785,21 @@ pub fn run(
                     predicted_f: planned.feasibility,
                     predicted_cost_s: planned.cost_s,
                     motion_planner_calls: planned.motion_planner_calls,
+                    retries: exec.retries,
                     steps: exec
                         .steps
                         .iter()
-                        .map(|(o, s)| {
-                            format!(
-                                "{o}:{}",
-                                serde_json::to_string(s)
-                                    .unwrap_or_default()
-                                    .trim_matches('"')
-                            )
+                        .map(|(o, attempts)| {
+                            let names: Vec<String> = attempts
+                                .iter()
+                                .map(|s| {
+                                    serde_json::to_string(s)
+                                        .unwrap_or_default()
+                                        .trim_matches('"')
+                                        .to_string()
+                                })
+                                .collect();
+                            format!("{o}:{}", names.join(">"))
                         })
                         .collect::<Vec<_>>()
                         .join("|"),
@@ -762,12 +815,12 @@ pub fn run(
 pub fn write_csv(path: &Path, records: &[TaskRecord]) -> Result<(), EvalError> {
     use std::fmt::Write;
     let mut s = String::from(
-        "task,scene,n_chairs,speed_mps,method,difficulty,servable_area_m2,objects,placed,time_s,distance_m,predicted_f,predicted_cost_s,motion_planner_calls,steps\n",
+        "task,scene,n_chairs,speed_mps,method,difficulty,servable_area_m2,objects,placed,time_s,distance_m,predicted_f,predicted_cost_s,motion_planner_calls,retries,steps\n",
     );
     for r in records {
         let _ = writeln!(
             s,
-            "{},{},{},{},{},{},{:.4},{},{},{:.2},{:.2},{:.4},{:.2},{},{}",
+            "{},{},{},{},{},{},{:.4},{},{},{:.2},{:.2},{:.4},{:.2},{},{},{}",
             r.task,
             r.scene,
             r.n_chairs,
@@ -782,6 +835,7 @@ pub fn write_csv(path: &Path, records: &[TaskRecord]) -> Result<(), EvalError> {
             r.predicted_f,
             r.predicted_cost_s,
             r.motion_planner_calls,
+            r.retries,
             r.steps
         );
     }
@@ -862,6 +916,31 @@ pub struct Summary {
     /// GROP minus each other method at the main speed, paired over the same tasks:
     /// (method, difficulty or None for all, difference).
     pub paired: Vec<(MethodKind, Option<Difficulty>, PairedDiff)>,
+    /// GROP+ minus GROP at the main speed, paired over the same tasks (when both ran):
+    /// (difficulty or None for all, difference).
+    pub plus: Vec<(Option<Difficulty>, PlusDiff)>,
+}
+
+/// GROP+ minus GROP on the same tasks: completion, all placed, time.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct PlusDiff {
+    /// Per-task fraction placed.
+    pub completion: PairedDiff,
+    /// Per task 1 if every object was placed, else 0.
+    pub all_placed: PairedDiff,
+    /// Task time (s).
+    pub time_s: PairedDiff,
+}
+
+impl PlusDiff {
+    /// `a - b` over the tasks both ran.
+    pub fn of(a: &[&TaskRecord], b: &[&TaskRecord]) -> PlusDiff {
+        PlusDiff {
+            completion: PairedDiff::of(a, b),
+            all_placed: PairedDiff::of_metric(a, b, |r| f64::from(u8::from(r.placed == r.objects))),
+            time_s: PairedDiff::of_metric(a, b, |r| r.time_s),
+        }
+    }
 }
 
 /// Mean difference of per-task completion between two methods on the same tasks, with its
@@ -877,9 +956,17 @@ pub struct PairedDiff {
 }
 
 impl PairedDiff {
-    /// The paired difference `a - b` over the tasks both ran.
+    /// The paired difference `a - b` of per-task completion over the tasks both ran.
     pub fn of(a: &[&TaskRecord], b: &[&TaskRecord]) -> PairedDiff {
-        let rate = |r: &TaskRecord| r.placed as f64 / r.objects.max(1) as f64;
+        Self::of_metric(a, b, |r| r.placed as f64 / r.objects.max(1) as f64)
+    }
+
+    /// The paired difference `a - b` of a per-task measure over the tasks both ran.
+    pub fn of_metric(
+        a: &[&TaskRecord],
+        b: &[&TaskRecord],
+        rate: impl Fn(&TaskRecord) -> f64,
+    ) -> PairedDiff {
         let by_task: std::collections::HashMap<usize, f64> =
             b.iter().map(|r| (r.task, rate(r))).collect();
         let d: Vec<f64> = a
@@ -930,8 +1017,27 @@ impl Summary {
         }
         let mut paired = Vec::new();
         let grop: Vec<&TaskRecord> = at(cfg.main_speed_mps, MethodKind::Grop).collect();
+        let grop_plus: Vec<&TaskRecord> = at(cfg.main_speed_mps, MethodKind::GropPlus).collect();
+        let mut plus = Vec::new();
+        if !grop.is_empty() && !grop_plus.is_empty() {
+            plus.push((None, PlusDiff::of(&grop_plus, &grop)));
+            for d in Difficulty::ALL {
+                let a: Vec<&TaskRecord> = grop_plus
+                    .iter()
+                    .copied()
+                    .filter(|r| r.difficulty == d)
+                    .collect();
+                let b: Vec<&TaskRecord> =
+                    grop.iter().copied().filter(|r| r.difficulty == d).collect();
+                plus.push((Some(d), PlusDiff::of(&a, &b)));
+            }
+        }
         if !grop.is_empty() {
-            for &m in cfg.methods.iter().filter(|&&m| m != MethodKind::Grop) {
+            for &m in cfg
+                .methods
+                .iter()
+                .filter(|&&m| m != MethodKind::Grop && m != MethodKind::GropPlus)
+            {
                 let other: Vec<&TaskRecord> = at(cfg.main_speed_mps, m).collect();
                 paired.push((m, None, PairedDiff::of(&grop, &other)));
                 for d in Difficulty::ALL {
@@ -957,6 +1063,7 @@ impl Summary {
             sweep,
             points,
             paired,
+            plus,
         }
     }
 
@@ -976,6 +1083,11 @@ impl Summary {
             .map(|x| x.2)
     }
 
+    /// GROP+ minus GROP, paired over tasks, in group `d` (None: all tasks).
+    pub fn plus_get(&self, d: Option<Difficulty>) -> Option<PlusDiff> {
+        self.plus.iter().find(|(dd, _)| *dd == d).map(|x| x.1)
+    }
+
     /// Stats of the sweep.
     pub fn sweep_get(&self, speed: f64, m: MethodKind) -> Option<Stats> {
         self.sweep
@@ -993,7 +1105,7 @@ impl Summary {
                 let best_other = cfg
                     .methods
                     .iter()
-                    .filter(|&&m| m != g)
+                    .filter(|&&m| m != g && m != MethodKind::GropPlus)
                     .filter_map(|&m| self.get(m, Some(d)).map(|s| (m, s.completion)))
                     .max_by(|a, b| a.1.total_cmp(&b.1));
                 if let Some((m, c)) = best_other {
@@ -1046,6 +1158,35 @@ impl Summary {
                 rising,
             ));
         }
+        // Issue 13: GROP+ on the hard third.
+        let hard = Some(Difficulty::Hard);
+        if let (Some(p), Some(gs), Some(d)) = (
+            self.get(MethodKind::GropPlus, hard),
+            self.get(g, hard),
+            self.plus_get(hard),
+        ) {
+            out.push((
+                format!(
+                    "hard: GROP+ places at least 0.90 of the objects ({:.3}; GROP {:.3}; paired {:+.3} ± {:.3})",
+                    p.completion, gs.completion, d.completion.mean, d.completion.std_error
+                ),
+                p.completion >= 0.90,
+            ));
+            out.push((
+                format!(
+                    "hard: GROP+ places all three in at least 0.75 of the tasks ({:.3}; GROP {:.3}; paired {:+.3} ± {:.3})",
+                    p.all_placed, gs.all_placed, d.all_placed.mean, d.all_placed.std_error
+                ),
+                p.all_placed >= 0.75,
+            ));
+            out.push((
+                format!(
+                    "hard: GROP+'s mean task time no higher than GROP's ({:.1} s vs {:.1} s; paired {:+.1} ± {:.1} s)",
+                    p.mean_time_s, gs.mean_time_s, d.time_s.mean, d.time_s.std_error
+                ),
+                p.mean_time_s <= gs.mean_time_s,
+            ));
+        }
         out
     }
 
@@ -1093,7 +1234,11 @@ impl Summary {
             );
             let _ = writeln!(s, "| method | easy | normal | hard | all |");
             let _ = writeln!(s, "|---|---|---|---|---|");
-            for &m in cfg.methods.iter().filter(|&&m| m != MethodKind::Grop) {
+            for &m in cfg
+                .methods
+                .iter()
+                .filter(|&&m| m != MethodKind::Grop && m != MethodKind::GropPlus)
+            {
                 let cell = |d| {
                     self.paired_get(m, d)
                         .map(|x| format!("{:+.3} ± {:.3}", x.mean, x.std_error))
@@ -1108,6 +1253,42 @@ impl Summary {
                     cell(Some(Difficulty::Hard)),
                     cell(None)
                 );
+            }
+        }
+        if !self.plus.is_empty() {
+            let p = cfg.planner.plus;
+            let _ = writeln!(
+                s,
+                "\nGROP+ (retries {}, goal draws {}, goal margin {} m, R follows speed {}) minus GROP, paired over the same tasks: completion / all placed / time (s), mean difference ± standard error\n",
+                p.max_retries,
+                p.goal_draws.map_or_else(
+                    || format!("GROP's ({})", cfg.planner.goal_draws),
+                    |n| n.to_string()
+                ),
+                p.goal_margin_m,
+                if p.r_follows_speed { "on" } else { "off" }
+            );
+            let _ = writeln!(s, "| group | completion | all placed | time (s) |");
+            let _ = writeln!(s, "|---|---|---|---|");
+            for d in [
+                Some(Difficulty::Easy),
+                Some(Difficulty::Normal),
+                Some(Difficulty::Hard),
+                None,
+            ] {
+                if let Some(x) = self.plus_get(d) {
+                    let _ = writeln!(
+                        s,
+                        "| {} | {:+.3} ± {:.3} | {:+.3} ± {:.3} | {:+.1} ± {:.1} |",
+                        d.map_or("all", Difficulty::name),
+                        x.completion.mean,
+                        x.completion.std_error,
+                        x.all_placed.mean,
+                        x.all_placed.std_error,
+                        x.time_s.mean,
+                        x.time_s.std_error
+                    );
+                }
             }
         }
         if !self.sweep.is_empty() {
@@ -1181,6 +1362,7 @@ mod tests {
             predicted_f: 0.0,
             predicted_cost_s: 0.0,
             motion_planner_calls: 19,
+            retries: 0,
             steps: String::new(),
         };
         let s = Stats::of(&[r(3, 10.0), r(0, 30.0)]);
@@ -1209,6 +1391,7 @@ mod tests {
             predicted_f: 0.0,
             predicted_cost_s: 0.0,
             motion_planner_calls: 0,
+            retries: 0,
             steps: String::new(),
         };
         let a = [
@@ -1231,8 +1414,10 @@ mod tests {
     fn runs_cover_main_and_sweep_once() {
         let cfg = EvalConfig::default();
         let runs = cfg.runs();
-        assert_eq!(runs.len(), 5 + 2 * 3);
+        // Six methods at 0.4 m/s; GROP+, GROP, PETLON and DVH also at 0.2 and 0.8 m/s.
+        assert_eq!(runs.len(), 6 + 2 * 4);
         assert!(runs.contains(&(0.2, MethodKind::Dvh)));
+        assert!(runs.contains(&(0.8, MethodKind::GropPlus)));
         assert!(!runs.contains(&(0.2, MethodKind::Satisficing)));
     }
 

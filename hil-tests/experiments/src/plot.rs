@@ -11,6 +11,7 @@ use planner::methods::MethodKind;
 
 fn colour(m: MethodKind) -> RGBColor {
     match m {
+        MethodKind::GropPlus => RGBColor(148, 103, 189),
         MethodKind::Grop => RGBColor(214, 39, 40),
         MethodKind::Satisficing => RGBColor(127, 127, 127),
         MethodKind::Petlon => RGBColor(31, 119, 180),

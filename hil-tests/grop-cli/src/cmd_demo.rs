@@ -30,8 +30,9 @@ pub struct Args {
     /// The feasibility network Psi (ONNX).
     #[arg(long, default_value = "models/psi-fcn.onnx")]
     pub model: PathBuf,
-    /// Planning method: grop, satisficing, petlon, dvh, fcn-planning.
-    #[arg(long, default_value = "grop")]
+    /// Planning method: grop+ (GROP with retries and best-of-n goals, the default), grop (the
+    /// paper's Algorithm 1), satisficing, petlon, dvh, fcn-planning.
+    #[arg(long, default_value = "grop+")]
     pub method: String,
     /// GROP draws its goal from the whole heatmap, as the paper does, instead of from the
     /// obstacle-free cells only (the default).
@@ -50,8 +51,9 @@ pub struct Args {
     /// does) instead of the closed loop of processes.
     #[arg(long)]
     pub in_process: bool,
-    /// After a failed unload: `none` (the paper: go on with the rest) or `replan`.
-    #[arg(long, default_value = "none")]
+    /// After a failed unload: `grop-plus` (GROP+'s retry policy, the default), `none` (the
+    /// paper: go on with the rest) or `replan`.
+    #[arg(long, default_value = "grop-plus")]
     pub retry: String,
     /// Run at wall-clock pace (1 simulated second per second) instead of as fast as the
     /// processes compute.
@@ -93,7 +95,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 fn run_in_process(args: Args) -> anyhow::Result<()> {
     let method = MethodKind::parse(&args.method).with_context(|| {
         format!(
-            "unknown --method {:?}: use grop, satisficing, petlon, dvh or fcn-planning",
+            "unknown --method {:?}: use grop+, grop, satisficing, petlon, dvh or fcn-planning",
             args.method
         )
     })?;
@@ -172,8 +174,11 @@ fn run_in_process(args: Args) -> anyhow::Result<()> {
         ..EvalConfig::default()
     };
     let mut rng = ChaCha8Rng::seed_from_u64(args.world.seed);
-    let execution =
-        experiments::execute(&eval, &scene, &robot, &grid, &problem, &planned, &mut rng);
+    // GROP+ retries a failed unload where its retry policy says; the other methods do not.
+    let retry = (method == MethodKind::GropPlus).then_some(&config);
+    let execution = experiments::execute(
+        &eval, &scene, &robot, &grid, &problem, &planned, retry, &mut rng,
+    );
     for (object, outcome) in &execution.steps {
         println!("  executed obj{object}: {outcome:?}");
     }
@@ -204,7 +209,7 @@ fn draw(
     grid: &OccupancyGrid,
     problem: &TaskProblem,
     planned: &planner::methods::PlannedTask,
-    steps: &[(usize, StepOutcome)],
+    steps: &[(usize, Vec<StepOutcome>)],
 ) -> RgbImage {
     let room = common::room_view(scene, args.pixels_per_m, true);
     let mut img = view::render_room(scene, &room);
@@ -233,8 +238,9 @@ fn draw(
     }
     for (step, (_, outcome)) in planned.plan.unloads.iter().zip(steps) {
         let goal = planned.goal_of(step);
-        let colour = match outcome {
-            StepOutcome::Placed => Rgb([0, 160, 0]),
+        // The first goal's colour: green when placed there, else red (a retry went elsewhere).
+        let colour = match outcome.first() {
+            Some(StepOutcome::Placed) => Rgb([0, 160, 0]),
             _ => Rgb([210, 0, 0]),
         };
         view::draw_marker(&mut img, &room, goal.xy.0, goal.xy.1, 0.12, colour);

@@ -31,14 +31,14 @@ fn parse_camera(s: &str) -> anyhow::Result<(u32, u32)> {
 pub fn run(args: Args) -> anyhow::Result<()> {
     planner::methods::MethodKind::parse(&args.method).with_context(|| {
         format!(
-            "unknown --method {:?}: use grop, satisficing, petlon, dvh or fcn-planning",
+            "unknown --method {:?}: use grop+, grop, satisficing, petlon, dvh or fcn-planning",
             args.method
         )
     })?;
     let (scene, robot) = args.world.load()?;
     anyhow::ensure!(
-        ["none", "replan"].contains(&args.retry.as_str()),
-        "--retry {:?}: use none or replan",
+        ["none", "replan", "grop-plus"].contains(&args.retry.as_str()),
+        "--retry {:?}: use grop-plus, none or replan",
         args.retry
     );
     let model = std::fs::canonicalize(&args.model).or_else(|_| {

@@ -9,6 +9,7 @@ use std::time::Instant;
 use anyhow::Context;
 use experiments::{EvalConfig, HeatmapSet, Summary, Workload};
 use planner::feasibility::FcnEvaluator;
+use planner::grop_plus::GropPlusConfig;
 use planner::methods::{BaselineGoals, MethodKind};
 use psi_eval::heuristics::{BinaryAnnulusEvaluator, BlurredAnnulusEvaluator, OracleEvaluator};
 
@@ -95,13 +96,34 @@ pub struct Args {
     /// Skip the speed sweep (main comparison only).
     #[arg(long)]
     pub no_sweep: bool,
-    /// Methods of the main comparison, comma-separated.
+    /// Methods of the main comparison, comma-separated (`grop+` is GROP with the levers below).
     #[arg(
         long,
         value_delimiter = ',',
-        default_value = "grop,satisficing,petlon,dvh,fcn-planning"
+        default_value = "grop+,grop,satisficing,petlon,dvh,fcn-planning"
     )]
     pub methods: Vec<String>,
+    /// Methods of the speed sweep, comma-separated.
+    #[arg(long, value_delimiter = ',', default_value = "grop+,grop,petlon,dvh")]
+    pub sweep_methods: Vec<String>,
+    /// GROP+ lever: retries after a failed unload (0: off). Default: GROP+'s (1).
+    #[arg(long)]
+    pub plus_retries: Option<usize>,
+    /// GROP+ lever: Smp draws per (target, side), keeping the best (0: off, GROP's
+    /// `--goal-draws`). Default: GROP+'s.
+    #[arg(long)]
+    pub plus_goal_draws: Option<usize>,
+    /// GROP+ lever: goals at least this far (m) from a candidate cell where the base collides
+    /// (0: off). Default: GROP+'s.
+    #[arg(long)]
+    pub plus_goal_margin: Option<f64>,
+    /// GROP+ lever: R scaled by 0.4 m/s / speed (true) or fixed (false). Default: GROP+'s.
+    #[arg(long)]
+    pub plus_r_follows_speed: Option<bool>,
+    /// Start from every GROP+ lever off (GROP+ then plans and executes exactly as GROP) instead
+    /// of GROP+'s defaults; the `--plus-*` flags given switch single levers back on.
+    #[arg(long)]
+    pub plus_off: bool,
     /// F(p) = sum (paper) or product of the pairs' feasibilities.
     #[arg(long, value_enum, default_value_t = Aggregation::Sum)]
     pub aggregation: Aggregation,
@@ -146,7 +168,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .iter()
         .map(|m| MethodKind::parse(m).with_context(|| format!("unknown method {m:?}")))
         .collect::<anyhow::Result<Vec<_>>>()?;
+    let sweep_methods = args
+        .sweep_methods
+        .iter()
+        .map(|m| MethodKind::parse(m).with_context(|| format!("unknown sweep method {m:?}")))
+        .collect::<anyhow::Result<Vec<_>>>()?;
     let mut cfg = EvalConfig {
+        sweep_methods,
         seed: args.seed,
         scenes_per_chair_count: args.scenes_per_chair_count,
         tasks_per_scene: args.tasks_per_scene,
@@ -173,8 +201,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             Goals::Paper => BaselineGoals::Paper,
             Goals::Authors => BaselineGoals::AuthorsCode,
         },
+        plus: plus_config(&args),
         ..cfg.planner
     };
+    cfg.planner
+        .plus
+        .check()
+        .map_err(|e| anyhow::anyhow!("{e}"))?;
     if args.suite == Suite::FullSetting {
         return crate::cmd_eval_settings::run(&args, &robot, cfg.methods.clone(), cfg.planner);
     }
@@ -264,6 +297,26 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         println!("wrote the results into {}", docs.display());
     }
     Ok(())
+}
+
+/// GROP+'s levers from the flags: GROP+'s defaults (or every lever off with `--plus-off`), with
+/// the `--plus-*` flags given on top.
+fn plus_config(args: &Args) -> GropPlusConfig {
+    let base = if args.plus_off {
+        GropPlusConfig::OFF
+    } else {
+        GropPlusConfig::DEFAULT
+    };
+    GropPlusConfig {
+        max_retries: args.plus_retries.unwrap_or(base.max_retries),
+        goal_draws: match args.plus_goal_draws {
+            Some(0) => None,
+            Some(n) => Some(n),
+            None => base.goal_draws,
+        },
+        goal_margin_m: args.plus_goal_margin.unwrap_or(base.goal_margin_m),
+        r_follows_speed: args.plus_r_follows_speed.unwrap_or(base.r_follows_speed),
+    }
 }
 
 fn grop_select_aggregation(product: bool) -> planner::methods::Aggregation {

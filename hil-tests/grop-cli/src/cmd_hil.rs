@@ -120,7 +120,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         let plan_seed = mix_seed(cfg.seed, task.id as u64, 0x706c);
         let planned = Planner::new(method, pcfg).plan(&problem, &mut travel, plan_seed)?;
         let mut rng = ChaCha8Rng::seed_from_u64(mix_seed(cfg.seed, task.id as u64, 0x6578));
-        let exec = execute(&cfg, scene, &cfg.robot, grid, &problem, &planned, &mut rng);
+        // The missions run with `retry = "none"`, so the calculation does not retry either.
+        let exec = execute(
+            &cfg, scene, &cfg.robot, grid, &problem, &planned, None, &mut rng,
+        );
         let goals: Vec<String> = planned
             .plan
             .unloads

@@ -88,7 +88,8 @@ fn demo_in_process_plans_explains_executes_and_draws() {
     ]);
     let out = text(&o);
     assert!(o.status.success(), "{out}");
-    assert!(out.contains("GROP: F(p) ="), "{out}");
+    // GROP+ is the default method.
+    assert!(out.contains("GROP+: F(p) ="), "{out}");
     assert!(out.contains("of 288 plans"), "{out}");
     assert!(out.contains("placed "), "{out}");
     let img = image_header(&png);
@@ -191,9 +192,10 @@ fn eval_writes_tables_and_names_a_bad_success_bonus() {
     let s = summary();
     assert!(s.contains("6 tasks") && s.contains("R 100"), "{s}");
     assert!(s.contains("GROP minus each method"), "{s}");
+    assert!(s.contains("GROP+ (retries 1, goal draws 20"), "{s}");
     let csv = std::fs::read_to_string(out_dir.join("eval_tasks.csv")).unwrap();
-    // Header + 6 tasks x 5 methods.
-    assert_eq!(csv.lines().count(), 1 + 6 * 5);
+    // Header + 6 tasks x 6 methods (GROP+ and GROP first).
+    assert_eq!(csv.lines().count(), 1 + 6 * 6);
     assert!(out_dir.join("fig5.svg").exists());
 
     // A geometric heuristic as Psi, GROP alone, the paper's Smp.
@@ -216,6 +218,9 @@ fn eval_writes_tables_and_names_a_bad_success_bonus() {
     let (ok, out) = eval(&["--success-bonus=-1"]);
     assert!(!ok);
     assert!(out.contains("success_bonus_r"), "{out}");
+    let (ok, out) = eval(&["--plus-retries", "9"]);
+    assert!(!ok);
+    assert!(out.contains("GROP+ retries must be at most 8"), "{out}");
 }
 
 #[test]

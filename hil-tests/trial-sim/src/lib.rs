@@ -18,6 +18,7 @@
 //! ```
 
 pub mod datagen;
+pub mod retry;
 pub mod trial;
 
 pub use trial::{

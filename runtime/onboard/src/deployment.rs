@@ -22,7 +22,7 @@
 //! [planner]                    # optional section
 //! method = "grop"              # grop | petlon | dvh | fcn-planning | satisficing
 //! paper_smp = false            # true: Smp over the whole heatmap, as the paper
-//! retry = "none"               # none (the paper: a failed object is dropped) | replan
+//! retry = "none"               # none (the paper: a failed object is dropped) | replan | grop-plus
 //! ```
 
 use std::path::{Path, PathBuf};
@@ -178,6 +178,12 @@ pub enum RetryPolicy {
     None,
     /// Plan again over what is left from where the robot stands, with a fresh frame.
     Replan,
+    /// GROP+'s retry policy (`planner::grop_plus::retry_goal`, the one `grop eval` measures):
+    /// drive to the best untried cell of either side of the failed object, from where the robot
+    /// stands, and unload again, then go on with the rest of the plan; at most the planner's
+    /// `max_retries` retries per object, after which the object is dropped as with `None`.
+    #[serde(rename = "grop-plus")]
+    GropPlus,
 }
 
 /// Which planner the node runs and how.

@@ -28,6 +28,12 @@
 //!   plan without the failed object, in the same order with the same goals; objects already on
 //!   board need no station visit. No new frame or Psi run. (Without a current plan, e.g. after a
 //!   restart, it plans the remaining objects minus the failed one as below.)
+//! * `UnloadFailed` with [`RetryPolicy::GropPlus`]: GROP+'s retry
+//!   ([`planner::grop_plus::retry_goal`], the policy `grop eval` measures) on the problem of the
+//!   current plan: a navigation to the best untried cell of either side of the failed object and
+//!   an unload there, then the remainder of the current plan. No new frame or Psi run. When the
+//!   policy gives the object up (its retries spent, or no cell worth the drive), the answer is the
+//!   `None` answer.
 //! * `UnloadFailed` with [`RetryPolicy::Replan`], and `SceneChanged` / `LegFailed` with either
 //!   policy: a new plan over `remaining_mask` from the request's pose with the newest frame. The
 //!   planner's domain always loads at the station first; when every remaining object is already on
@@ -49,6 +55,7 @@ use planner::costs::{GridTravelTime, TravelTime};
 use planner::feasibility::{
     FcnEvaluator, FeasibilityError, FeasibilityEvaluator, FeasibilityQuery,
 };
+use planner::grop_plus::retry_goal;
 use planner::methods::{PlanError, PlannedTask, Planner, PlannerConfig, TaskMotionPlanner};
 use planner::problem::{TaskProblem, side_of_location};
 use planner::task::{MAX_OBJECTS, location_index};
@@ -165,6 +172,10 @@ pub struct PlannerNode {
     seed: u64,
     /// Steps of the plan published last (to cut the remainder from).
     current: Option<CurrentPlan>,
+    /// The problem of the last plan made with Psi (for GROP+'s retries) and its objects.
+    last_problem: Option<(Vec<usize>, TaskProblem)>,
+    /// Per object: the goals tried since the mission started (GROP+'s retries).
+    tried: Vec<Vec<(f64, f64)>>,
     plan_counter: u64,
     heartbeat_seq: u64,
     next_heartbeat: Option<Duration>,
@@ -243,6 +254,8 @@ impl PlannerNode {
             grid,
             psi,
             current: None,
+            last_problem: None,
+            tried: vec![Vec::new(); n],
             plan_counter: 0,
             heartbeat_seq: 0,
             next_heartbeat: None,
@@ -265,6 +278,17 @@ impl PlannerNode {
     /// The map and task.
     pub fn scene(&self) -> &Scene {
         &self.scene
+    }
+
+    /// The planner's settings (GROP+'s retry levers among them).
+    pub fn planner_config(&self) -> PlannerConfig {
+        self.planner.config
+    }
+
+    /// The task problem of the last plan made with Psi and the scene's object index of each of
+    /// its objects (what GROP+'s retries are chosen on).
+    pub fn last_problem(&self) -> Option<(&[usize], &TaskProblem)> {
+        self.last_problem.as_ref().map(|(o, p)| (o.as_slice(), p))
     }
 
     /// Loop overruns counted so far.
@@ -339,7 +363,7 @@ impl PlannerNode {
         let can_answer = self.pending.is_some_and(|r| {
             self.newest_frame.is_some()
                 || (r.reason() == Ok(ReplanReason::UnloadFailed)
-                    && self.retry == RetryPolicy::None
+                    && matches!(self.retry, RetryPolicy::None | RetryPolicy::GropPlus)
                     && self.current.is_some())
         });
         if can_answer {
@@ -425,16 +449,30 @@ impl PlannerNode {
         } else {
             0
         };
+        if reason == ReplanReason::MissionStart {
+            self.tried.iter_mut().for_each(Vec::clear);
+        }
+        if reason == ReplanReason::UnloadFailed
+            && self.retry == RetryPolicy::GropPlus
+            && failed_bit != 0
+            && self.current.is_some()
+        {
+            let object = request.failed_object as usize;
+            self.tried[object].push((request.failed_goal_m[0], request.failed_goal_m[1]));
+            if let Some(retry) = self.retry_pair(object, (pose[0], pose[1])) {
+                return self.publish_remainder(request, Some(retry), remaining, on_board, now);
+            }
+        }
         match (reason, self.retry) {
             // A leg that could not be driven to an unload's goal failed that unload (the
             // paper's no-retry: go on with the rest).
-            (ReplanReason::UnloadFailed, RetryPolicy::None)
+            (ReplanReason::UnloadFailed, RetryPolicy::None | RetryPolicy::GropPlus)
             | (ReplanReason::LegFailed, RetryPolicy::None)
                 if failed_bit != 0 || reason == ReplanReason::UnloadFailed =>
             {
                 let left = remaining & !failed_bit;
                 if self.current.is_some() {
-                    self.publish_remainder(request, left, on_board & left, now)
+                    self.publish_remainder(request, None, left, on_board & left, now)
                 } else {
                     self.plan_and_publish(request, left, on_board & left, now)
                 }
@@ -528,6 +566,7 @@ impl PlannerNode {
         };
         let mut travel = GridTravelTime::new(&self.grid, self.robot.speed_mps);
         let decision = self.planner.plan(&problem, &mut travel, seed)?;
+        self.last_problem = Some((objects.clone(), problem));
         let load_mask = if all_on_board {
             0
         } else {
@@ -619,11 +658,45 @@ impl PlannerNode {
         (t.center_y_m - s.y_m).atan2(t.center_x_m - s.x_m)
     }
 
-    /// The paper's no-retry answer: the current plan's unloads of the objects in `left`, in
-    /// order, from the request's pose; a station visit only for objects not on board.
+    /// GROP+'s retry of `object` from `at_xy` (navigate + unload steps), if the policy retries:
+    /// [`planner::grop_plus::retry_goal`] on the last plan's problem, the goals tried for the
+    /// object so far excluded.
+    fn retry_pair(&mut self, object: usize, at_xy: (f64, f64)) -> Option<(TaskStep, TaskStep)> {
+        let (objects, problem) = self.last_problem.as_ref()?;
+        let local = objects.iter().position(|&o| o == object)?;
+        let tried = &self.tried[object];
+        let mut travel = GridTravelTime::new(&self.grid, self.robot.speed_mps);
+        let goal = retry_goal(
+            &self.planner.config,
+            problem,
+            local,
+            tried,
+            at_xy,
+            tried.len().saturating_sub(1),
+            &mut travel,
+        )?;
+        let loc = &problem.locations[goal.location];
+        let mut nav = TaskStep::navigate(goal.xy.0, goal.xy.1, goal.yaw_rad, 0.0);
+        nav.side = i32::from(loc.side.sign());
+        let unload = TaskStep::unload(
+            object as u32,
+            table_side(loc.side),
+            loc.target,
+            [goal.xy.0, goal.xy.1, goal.yaw_rad],
+            // The retry's predicted success: the heatmap value of its cell.
+            f64::from(goal.heat_value),
+        );
+        Some((nav, unload))
+    }
+
+    /// The no-retry answer (the paper's): the current plan's unloads of the objects in `left`, in
+    /// order, from the request's pose; a station visit only for objects not on board. With
+    /// `first` (GROP+'s retry of the failed object) that unload comes first and the failed object
+    /// is not repeated from the current plan.
     fn publish_remainder(
         &mut self,
         request: &ReplanRequestMsg,
+        first: Option<(TaskStep, TaskStep)>,
         left: u64,
         on_board: u64,
         now: Duration,
@@ -633,10 +706,11 @@ impl PlannerNode {
             return self.plan_and_publish(request, left, on_board, now);
         };
         let frame_id = current.source_frame_id;
-        let mut pairs: Vec<(TaskStep, TaskStep)> = Vec::new();
+        let mut pairs: Vec<(TaskStep, TaskStep)> = first.into_iter().collect();
+        let retried = first.map_or(0, |(_, u)| 1u64 << u.object_index);
         for w in current.steps.windows(2) {
             if w[1].kind() == Ok(TaskStepKind::Unload)
-                && w[1].object().is_ok_and(|o| left & (1 << o) != 0)
+                && w[1].object().is_ok_and(|o| left & !retried & (1 << o) != 0)
             {
                 pairs.push((w[0], w[1]));
             }

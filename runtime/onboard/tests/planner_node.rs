@@ -332,10 +332,134 @@ fn failed_unloads_are_answered_by_retry_policy() {
                 objects.sort_unstable();
                 assert_eq!(objects, [0, 1, 2], "the failed object is tried again");
             }
+            RetryPolicy::GropPlus => {
+                unreachable!("failed_unload_is_answered_with_the_grop_plus_retry")
+            }
         }
         // Legs are costed from the pose.
         assert!(steps[0].travel_cost_s > 0.0);
     }
+}
+
+/// The steps with the first leg's cost zeroed (it is costed from wherever the robot stands).
+fn without_first_leg_cost(steps: &[TaskStep]) -> Vec<TaskStep> {
+    let mut v = steps.to_vec();
+    v[0].travel_cost_s = 0.0;
+    v
+}
+
+/// A failed unload with `retry = "grop-plus"`: the node answers with GROP+'s retry
+/// (`planner::grop_plus::retry_goal` on the problem it planned with) first, then the rest of the
+/// current plan; once the object's retries are spent, it drops the object like the paper.
+#[test]
+fn failed_unload_is_answered_with_the_grop_plus_retry() {
+    let robot = RobotConfig::default();
+    let scene = world::generate::evaluation_scene(8, 20, 3);
+    let ns = unique_namespace("grop-plus");
+    let settings = PlannerSettings {
+        retry: RetryPolicy::GropPlus,
+        ..PlannerSettings::default()
+    };
+    let mut node = PlannerNode::new(
+        &ns,
+        scene.clone(),
+        robot.clone(),
+        Box::new(psi()),
+        settings,
+        3,
+    )
+    .unwrap();
+    let config = node.planner_config();
+    let max_retries = config.plus.max_retries;
+    assert!(max_retries >= 1, "GROP+'s default retries");
+    let p = peers(&ns);
+    publish_frame(&p.camera, &scene, 1);
+    p.requests
+        .publish(&request(
+            1,
+            ReplanReason::MissionStart,
+            start_pose(&scene),
+            0b111,
+        ))
+        .unwrap();
+    let mut now = Duration::from_secs(1);
+    step_until_answer(&mut node, &mut now);
+    let first_steps = newest(&p.plans).steps().unwrap().to_vec();
+    let order = unloads(&first_steps);
+    let object = order[0].0;
+    let grid = world::nav::OccupancyGrid::from_scene(&scene, &robot);
+
+    let mut failed = first_steps[3];
+    let mut tried: Vec<(f64, f64)> = Vec::new();
+    for (request_id, retry) in (2u64..).zip(0..=max_retries) {
+        let pose = [failed.x_m + 0.03, failed.y_m - 0.02, failed.yaw_rad];
+        let mut failure = request(request_id, ReplanReason::UnloadFailed, pose, 0b111);
+        failure.failed_object = failed.object_index;
+        failure.failed_side = failed.side;
+        failure.failed_goal_m = [failed.x_m, failed.y_m];
+        failure.on_board_mask = 0b111;
+        tried.push((failed.x_m, failed.y_m));
+        p.requests.publish(&failure).unwrap();
+        let answer = step_until_answer(&mut node, &mut now);
+        assert!(!answer.replanned, "no new frame or Psi run for a retry");
+        let plan = newest(&p.plans);
+        assert_eq!(plan.answers_request, request_id);
+        let steps = plan.steps().unwrap();
+        assert!(steps.iter().all(|s| s.kind() != Ok(TaskStepKind::Load)));
+
+        // What the policy says on the node's own problem.
+        let (objects, problem) = node.last_problem().unwrap();
+        let local = objects.iter().position(|&o| o == object).unwrap();
+        let mut travel = GridTravelTime::new(&grid, robot.speed_mps);
+        let expected = planner::grop_plus::retry_goal(
+            &config,
+            problem,
+            local,
+            &tried,
+            (pose[0], pose[1]),
+            retry,
+            &mut travel,
+        );
+        match expected {
+            Some(goal) if retry < max_retries => {
+                let side = problem.locations[goal.location].side;
+                assert_eq!(
+                    unloads(steps)[0],
+                    (object, side),
+                    "retry {retry}: the failed object first"
+                );
+                let (nav, unload) = (steps[0], steps[1]);
+                assert_eq!(
+                    (nav.x_m, nav.y_m, nav.yaw_rad),
+                    (goal.xy.0, goal.xy.1, goal.yaw_rad)
+                );
+                assert_eq!((unload.x_m, unload.y_m), goal.xy);
+                assert!(!tried.contains(&goal.xy), "a tried goal is not repeated");
+                assert!(nav.travel_cost_s >= 0.0);
+                // Then the rest of the plan, as it was.
+                assert_eq!(unloads(&steps[2..]), order[1..].to_vec());
+                assert_eq!(
+                    without_first_leg_cost(&steps[2..]),
+                    without_first_leg_cost(&first_steps[4..])
+                );
+                failed = unload;
+            }
+            _ => {
+                assert_eq!(
+                    retry, max_retries,
+                    "the policy retries while its budget lasts"
+                );
+                // Given up: the paper's answer without the object.
+                assert_eq!(unloads(steps), order[1..].to_vec());
+                assert_eq!(
+                    without_first_leg_cost(steps),
+                    without_first_leg_cost(&first_steps[4..])
+                );
+                return;
+            }
+        }
+    }
+    panic!("the retry budget was never spent");
 }
 
 /// A simulated clock for the loop: `sleep_until` jumps to the deadline, and the test's stop

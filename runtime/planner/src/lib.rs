@@ -25,6 +25,7 @@
 pub mod arm;
 pub mod costs;
 pub mod feasibility;
+pub mod grop_plus;
 pub mod methods;
 pub mod multi_trip;
 pub mod problem;

@@ -3,6 +3,7 @@
 //!
 //! | method | navigation goal per (target, side) | plan choice |
 //! |---|---|---|
+//! | GROP+ | best of n `Smp` draws, optionally clear of obstacles by a margin ([`crate::grop_plus`]) | `argmax U = R F - C`, `R` optionally following speed; retries after a failed unload |
 //! | GROP | one `Smp` draw from the heatmap (best of n, optional) | `argmax U = R F - C` |
 //! | FCN-Planning | uniform among obstacle-free candidate cells | `argmax U = R F - C` |
 //! | PETLON | uniform among obstacle-free candidate cells | `argmin C`, optimistic costs refined by the motion planner until stable |
@@ -25,6 +26,7 @@ use world::Side;
 use world::generate::mix_seed;
 
 use crate::costs::{LegCache, NavNode, StraightLine, TravelTime};
+use crate::grop_plus::GropPlusConfig;
 use crate::problem::{CANDIDATE_CELLS, ProblemError, TaskProblem, UnloadLocation, candidate_index};
 use crate::task::{
     MAX_OBJECTS, PlanningTable, TaskPlan, TaskPlanError, UnloadStep, location_index, optimise,
@@ -34,6 +36,9 @@ use crate::task::{
 /// The planning methods compared in the paper.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub enum MethodKind {
+    /// GROP+: GROP with the levers of [`crate::grop_plus`] (retries, best-of-n draws, goal
+    /// margin, R following speed); the planner's default. Not the paper's algorithm.
+    GropPlus,
     /// GROP (ours, Algorithm 1).
     Grop,
     /// Satisficing: any valid plan, no costs, equal feasibility.
@@ -47,8 +52,9 @@ pub enum MethodKind {
 }
 
 impl MethodKind {
-    /// All methods, GROP first.
-    pub const ALL: [MethodKind; 5] = [
+    /// All methods, GROP+ and GROP first.
+    pub const ALL: [MethodKind; 6] = [
+        MethodKind::GropPlus,
         MethodKind::Grop,
         MethodKind::Satisficing,
         MethodKind::Petlon,
@@ -59,6 +65,7 @@ impl MethodKind {
     /// Name used in tables and on the command line.
     pub fn name(self) -> &'static str {
         match self {
+            MethodKind::GropPlus => "GROP+",
             MethodKind::Grop => "GROP",
             MethodKind::Satisficing => "Satisficing",
             MethodKind::Petlon => "PETLON",
@@ -67,9 +74,13 @@ impl MethodKind {
         }
     }
 
-    /// Parses a name case-insensitively (`grop`, `satisficing`, `petlon`, `dvh`, `fcn-planning`).
+    /// Parses a name case-insensitively (`grop+` or `grop-plus`, `grop`, `satisficing`, `petlon`,
+    /// `dvh`, `fcn-planning`).
     pub fn parse(name: &str) -> Option<MethodKind> {
         let n = name.trim().to_ascii_lowercase().replace('_', "-");
+        if n == "grop-plus" || n == "gropplus" {
+            return Some(MethodKind::GropPlus);
+        }
         MethodKind::ALL
             .into_iter()
             .find(|m| m.name().to_ascii_lowercase() == n)
@@ -77,7 +88,7 @@ impl MethodKind {
 
     /// Does the method choose goals from the heatmap with `Smp`?
     pub fn uses_smp_goals(self) -> bool {
-        self == MethodKind::Grop
+        matches!(self, MethodKind::Grop | MethodKind::GropPlus)
     }
 }
 
@@ -139,6 +150,8 @@ pub struct PlannerConfig {
     /// the draw lands on a cell the noise might still rescue (docs/planner.md, "Smp over free
     /// cells").
     pub free_goals_only: bool,
+    /// GROP+'s levers (read by [`MethodKind::GropPlus`] only; the other methods ignore them).
+    pub plus: GropPlusConfig,
 }
 
 impl Default for PlannerConfig {
@@ -153,6 +166,7 @@ impl Default for PlannerConfig {
             baseline_goals: BaselineGoals::Paper,
             lazy_costs: false,
             free_goals_only: true,
+            plus: GropPlusConfig::DEFAULT,
         }
     }
 }
@@ -181,6 +195,8 @@ pub enum GoalSource {
     FixedRegion,
     /// Uniform among all candidate cells: nothing better existed (all-zero heatmap, no free cell).
     UniformAny,
+    /// GROP+'s retry after a failed unload ([`crate::grop_plus::retry_goal`]).
+    Retry,
 }
 
 /// A navigation goal: where the base is commanded to stand for one (target, side).
@@ -379,7 +395,23 @@ impl Planner {
         if !(c.speed_mps.is_finite() && c.speed_mps > 0.0) {
             return Err(PlanError::Config("speed_mps must be finite and > 0"));
         }
+        if self.kind == MethodKind::GropPlus {
+            c.plus.check().map_err(PlanError::Config)?;
+            let e = c.plus.effective(c);
+            if e.goal_draws == 0 || e.goal_draws > 64 {
+                return Err(PlanError::Config("goal_draws must be in 1..=64"));
+            }
+        }
         Ok(())
+    }
+
+    /// The settings this method plans with: GROP+'s levers applied for GROP+, else as configured.
+    pub fn effective_config(&self) -> PlannerConfig {
+        if self.kind == MethodKind::GropPlus {
+            self.config.plus.effective(&self.config)
+        } else {
+            self.config
+        }
     }
 
     pub(crate) fn heat_of(&self, loc: &UnloadLocation) -> [f32; CANDIDATE_CELLS] {
@@ -389,10 +421,11 @@ impl Planner {
     /// Chooses the navigation goal of one location (Algorithm 1, line 10 for GROP).
     pub(crate) fn choose_goal(&self, index: usize, loc: &UnloadLocation, seed: u64) -> NavGoal {
         let mut rng = ChaCha8Rng::seed_from_u64(mix_seed(seed, GOAL_STREAM, index as u64));
+        let goal_draws = self.effective_config().goal_draws;
         let (cell, source) = match (self.kind, self.config.baseline_goals) {
-            (MethodKind::Grop, _) => {
+            (MethodKind::Grop | MethodKind::GropPlus, _) => {
                 let mut us = [0.0f64; 64];
-                let us = &mut us[..self.config.goal_draws];
+                let us = &mut us[..goal_draws];
                 for u in us.iter_mut() {
                     *u = rng.random::<f64>();
                 }
@@ -462,19 +495,23 @@ fn uniform_free(loc: &UnloadLocation, rng: &mut ChaCha8Rng) -> (usize, GoalSourc
 }
 
 /// The heatmap `method` reads for a location (goal draws and `Fea^t`): as predicted, or, for GROP
-/// with [`PlannerConfig::free_goals_only`], zero on the cells where the base collides.
+/// and GROP+ with [`PlannerConfig::free_goals_only`], zero on the cells where the base collides;
+/// GROP+ then also applies its goal margin ([`crate::grop_plus::plus_heat`]).
 pub fn location_heat(
     method: MethodKind,
     config: &PlannerConfig,
     loc: &UnloadLocation,
 ) -> [f32; CANDIDATE_CELLS] {
     let mut heat = loc.heat;
-    if config.free_goals_only && method == MethodKind::Grop {
+    if config.free_goals_only && method.uses_smp_goals() {
         for (h, c) in heat.iter_mut().zip(&loc.cells) {
             if !c.free {
                 *h = 0.0;
             }
         }
+    }
+    if method == MethodKind::GropPlus {
+        heat = crate::grop_plus::plus_heat(&config.plus, loc, heat);
     }
     heat
 }
@@ -514,7 +551,7 @@ impl TaskMotionPlanner for Planner {
             }
             .into());
         }
-        let cfg = self.config;
+        let cfg = self.effective_config();
         let m = 2 * n;
 
         // Per (target, side): Fea^t in closed form (eq. 4) and one goal, shared by all plans.
@@ -537,7 +574,7 @@ impl TaskMotionPlanner for Planner {
         let mut chosen_candidate = None;
         let mut refinement_rounds = 1;
         let plan = match self.kind {
-            MethodKind::Grop | MethodKind::FcnPlanning => {
+            MethodKind::Grop | MethodKind::GropPlus | MethodKind::FcnPlanning => {
                 let enumerate = self.enumerate_or_exact(n);
                 let plans = if enumerate {
                     satisficing_plans(n)?

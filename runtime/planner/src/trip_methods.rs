@@ -160,7 +160,10 @@ impl MultiTripPlanner {
         table.feasibility.copy_from_slice(&location_f);
         let mut rng = ChaCha8Rng::seed_from_u64(mix_seed(seed, TRIP_STREAM, 0));
         let (plan, search) = match self.kind {
-            MethodKind::Grop | MethodKind::FcnPlanning | MethodKind::Petlon => {
+            MethodKind::Grop
+            | MethodKind::GropPlus
+            | MethodKind::FcnPlanning
+            | MethodKind::Petlon => {
                 cache.fill_table(&mut table, travel);
                 let r = if self.kind == MethodKind::Petlon {
                     0.0

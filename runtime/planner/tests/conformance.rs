@@ -81,7 +81,7 @@ fn every_method_keeps_the_invariants() {
                     match (method, cfg.baseline_goals) {
                         // GROP draws with Smp, so never a zero cell when a positive one exists,
                         // and with free_goals_only never a cell where the base collides.
-                        (MethodKind::Grop, _) => {
+                        (MethodKind::Grop | MethodKind::GropPlus, _) => {
                             let read = location_heat(method, &cfg, loc);
                             if read.iter().any(|&v| v > 0.0) {
                                 assert_eq!(g.source, GoalSource::Smp, "{ctx}");
@@ -131,20 +131,16 @@ fn every_method_keeps_the_invariants() {
                         < 1e-12,
                     "{ctx}"
                 );
-                assert!(
-                    (out.utility - (cfg.success_bonus_r * out.feasibility - out.cost_s)).abs()
-                        < 1e-9
-                );
+                // GROP+ plans with its effective R (its lever may scale it with speed).
+                let r = planner.effective_config().success_bonus_r;
+                assert!((out.utility - (r * out.feasibility - out.cost_s)).abs() < 1e-9);
                 assert_eq!(out.locations.len(), 2 * n);
 
                 // 4. Each method's optimality claim, checked against every plan.
                 let plans = satisficing_plans(n).unwrap();
-                let u = |p| {
-                    cfg.success_bonus_r * table.plan_feasibility(p, cfg.aggregation)
-                        - table.plan_cost_s(p)
-                };
+                let u = |p| r * table.plan_feasibility(p, cfg.aggregation) - table.plan_cost_s(p);
                 match method {
-                    MethodKind::Grop | MethodKind::FcnPlanning => {
+                    MethodKind::Grop | MethodKind::GropPlus | MethodKind::FcnPlanning => {
                         let best = plans.iter().map(u).fold(f64::NEG_INFINITY, f64::max);
                         assert!(
                             out.utility >= best - 1e-7,
