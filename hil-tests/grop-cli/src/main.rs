@@ -18,6 +18,7 @@ mod cmd_latency;
 mod cmd_model_eval;
 mod cmd_render;
 mod cmd_replay;
+mod cmd_soak;
 mod common;
 
 /// GROP: visually grounded task-and-motion planning for a mobile manipulator setting dinner tables.
@@ -57,6 +58,10 @@ enum Command {
     /// Latency suite: camera frames across processes, loop jitter, CAN round trip,
     /// allocations; writes out/latency.md (docs/latency.md with --write-docs).
     Latency(cmd_latency::Args),
+    /// Soak: many closed-loop missions back to back; memory must stay flat and no shared
+    /// memory, socket or file descriptor may be left behind -> out/soak.md (`--write-docs`:
+    /// docs/soak.md).
+    Soak(cmd_soak::Args),
 }
 
 fn main() -> std::process::ExitCode {
@@ -73,6 +78,7 @@ fn main() -> std::process::ExitCode {
         Command::Hil(a) => cmd_hil::run(a),
         Command::Replay(a) => cmd_replay::run(a),
         Command::Latency(a) => cmd_latency::run(a),
+        Command::Soak(a) => cmd_soak::run(a),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

@@ -157,6 +157,17 @@ pub struct RunningMission {
     lines: Receiver<String>,
     report_path: PathBuf,
     dir: PathBuf,
+    /// Largest resident set seen of the world, the planner and the executive (VmHWM, KiB).
+    peak_rss_kib: [u64; 3],
+}
+
+/// A process's peak resident set so far (`VmHWM`, KiB), if it still runs.
+fn peak_rss_kib(pid: u32) -> Option<u64> {
+    let status = std::fs::read_to_string(format!("/proc/{pid}/status")).ok()?;
+    status
+        .lines()
+        .find_map(|l| l.strip_prefix("VmHWM:"))
+        .and_then(|v| v.trim().trim_end_matches("kB").trim().parse().ok())
 }
 
 fn kill(child: &mut Child, signal: i32) {
@@ -209,15 +220,30 @@ impl RunningMission {
 
     /// Waits for the world to finish (forwarding its lines to `echo`), then stops the onboard
     /// processes and returns the world's report.
-    pub fn finish(
+    pub fn finish(self, timeout: Duration, echo: &mut dyn FnMut(&str)) -> anyhow::Result<WorldReport> {
+        self.finish_measured(timeout, echo).map(|(report, _)| report)
+    }
+
+    /// [`finish`](Self::finish), also returning the peak resident set (KiB) of the world, the
+    /// planner and the executive, sampled every 20 ms while the mission ran.
+    pub fn finish_measured(
         mut self,
         timeout: Duration,
         echo: &mut dyn FnMut(&str),
-    ) -> anyhow::Result<WorldReport> {
+    ) -> anyhow::Result<(WorldReport, [u64; 3])> {
         let end = Instant::now() + timeout;
         let status = loop {
             while let Ok(line) = self.lines.try_recv() {
                 echo(&line);
+            }
+            for (peak, child) in self
+                .peak_rss_kib
+                .iter_mut()
+                .zip([&self.world, &self.planner, &self.executive])
+            {
+                if let Some(kib) = peak_rss_kib(child.id()) {
+                    *peak = (*peak).max(kib);
+                }
             }
             if let Some(status) = self.world.try_wait().context("waiting for grop-world")? {
                 break status;
@@ -269,8 +295,9 @@ impl RunningMission {
         }
         let text = std::fs::read_to_string(&self.report_path)
             .with_context(|| format!("reading {}", self.report_path.display()))?;
-        serde_json::from_str(&text)
-            .with_context(|| format!("parsing {}", self.report_path.display()))
+        let report = serde_json::from_str(&text)
+            .with_context(|| format!("parsing {}", self.report_path.display()))?;
+        Ok((report, self.peak_rss_kib))
     }
 
     fn stop_onboard(&mut self) {
@@ -484,6 +511,7 @@ pub fn start(spec: &MissionSpec, bins: &Binaries) -> anyhow::Result<RunningMissi
         recorder,
         lines,
         report_path,
+        peak_rss_kib: [0; 3],
         dir: spec.dir.clone(),
     })
 }
