@@ -18,6 +18,13 @@
 //!   object) with the `HeatmapsMsg` it came from;
 //! * publishes a `HeartbeatMsg` (role Planner) every 100 ms of clock time.
 //!
+//! Whole table settings: when a request has more objects than the tray holds (the robot file's
+//! `carry_capacity`) or than the single-trip planner takes (12), the node plans trips
+//! ([`MultiTripPlanner`]) and publishes them in one plan: per trip a navigation to the station,
+//! one Load step with the trip's objects, then Navigate + Unload per object. Objects already on
+//! board are delivered first (single-trip planner, no station visit), then the trips. Otherwise
+//! it plans one trip exactly as before. Remainders after a failed unload keep the trips.
+//!
 //! What a request plans:
 //! * `MissionStart`: the objects of `remaining_mask` (all of the map's targets when 0) from the
 //!   request's pose (the planner's start is the pose, not the map's `robot_start`); the seed is
@@ -141,6 +148,16 @@ pub enum RequestError {
     /// The multi-trip planner failed.
     #[error("multi-trip planner: {0}")]
     Trips(#[from] MultiTripError),
+    /// The tray is full of objects the plan does not unload, and some must be loaded.
+    #[error(
+        "{kept} objects given up stay on the tray of {capacity} (carry_capacity): no room to load"
+    )]
+    TrayFull {
+        /// Objects on board that the plan does not unload.
+        kept: usize,
+        /// The tray.
+        capacity: usize,
+    },
     /// More objects than the planner takes.
     #[error("{0} objects to plan; at most {MAX_PROBLEM_OBJECTS}")]
     TooManyObjects(usize),
@@ -511,10 +528,13 @@ impl PlannerNode {
         if objects.len() > MAX_PROBLEM_OBJECTS {
             return Err(RequestError::TooManyObjects(objects.len()));
         }
+        // Objects on the tray that this plan does not unload (given up after a failed unload)
+        // keep their slots.
+        let free = self.tray_free(request, objects_mask)?;
         // One trip when the tray takes everything (the single-trip planner, exactly as before);
         // otherwise trips, the objects already on board first (delivered before the next
         // station visit).
-        let single_trip = objects.len() <= self.capacity.min(MAX_OBJECTS);
+        let single_trip = objects.len() <= free.min(MAX_OBJECTS);
         if !single_trip {
             objects.sort_by_key(|&o| on_board & (1 << o) == 0);
         }
@@ -612,7 +632,7 @@ impl PlannerNode {
                 feasibility_of,
             )
         } else {
-            let planned = self.plan_trips(&objects, &targets, on_board, pose_xy, seed)?;
+            let planned = self.plan_trips(&objects, &targets, on_board, pose_xy, seed, free)?;
             self.last_problem = Some((objects.clone(), problem));
             planned
         };
@@ -658,6 +678,7 @@ impl PlannerNode {
         on_board: u64,
         pose_xy: (f64, f64),
         seed: u64,
+        capacity: usize,
     ) -> Result<(Vec<TaskStep>, (f64, f64, f64), Vec<f64>), RequestError> {
         let n_board = objects
             .iter()
@@ -700,12 +721,8 @@ impl PlannerNode {
                 &self.heat_buffers[2 * n_board..2 * objects.len()],
             );
             problem.start_xy = at;
-            let trips = MultiTripPlanner::new(
-                self.planner.kind,
-                self.planner.config,
-                self.capacity,
-            )
-            .plan(&problem, &mut travel, seed)?;
+            let trips = MultiTripPlanner::new(self.planner.kind, self.planner.config, capacity)
+                .plan(&problem, &mut travel, seed)?;
             log::debug!(
                 "{} trips over {} objects: U {:.2}, F {:.3}, C {:.1} s, bound {:?}",
                 trips.plan.trips.len(),
@@ -865,6 +882,7 @@ impl PlannerNode {
             return self.plan_and_publish(request, left, on_board, now);
         };
         let frame_id = current.source_frame_id;
+        let free = self.tray_free(request, left)?;
         // Groups of (navigate, unload): first the objects on board (the retry first), then, per
         // trip of the current plan, its objects still at the station (one station visit each).
         let mut groups: Vec<Vec<(TaskStep, TaskStep)>> = vec![first.into_iter().collect()];
@@ -893,6 +911,19 @@ impl PlannerNode {
             self.scene.loading_station.x_m,
             self.scene.loading_station.y_m,
         );
+        // A trip of the current plan larger than the tray's free slots (an object given up stays
+        // on the tray) becomes several station visits, in the same order.
+        let groups: Vec<Vec<(TaskStep, TaskStep)>> = groups
+            .into_iter()
+            .enumerate()
+            .flat_map(|(g, pairs)| {
+                if g == 0 || pairs.len() <= free {
+                    vec![pairs]
+                } else {
+                    pairs.chunks(free).map(<[_]>::to_vec).collect()
+                }
+            })
+            .collect();
         let (mut feasibility, mut cost_s) = (0.0, 0.0);
         for (g, pairs) in groups.into_iter().enumerate() {
             let to_load = pairs
@@ -936,6 +967,25 @@ impl PlannerNode {
             started,
             now,
         )
+    }
+
+    /// Free tray slots for a plan over `objects_mask`: the tray (`carry_capacity`) less the
+    /// objects on board (`request.on_board_mask`) that the plan does not unload. None free while
+    /// something must be loaded is an error.
+    fn tray_free(
+        &self,
+        request: &ReplanRequestMsg,
+        objects_mask: u64,
+    ) -> Result<usize, RequestError> {
+        let kept = (request.on_board_mask & !objects_mask).count_ones() as usize;
+        let free = self.capacity.saturating_sub(kept);
+        if free == 0 && objects_mask & !request.on_board_mask != 0 {
+            return Err(RequestError::TrayFull {
+                kept,
+                capacity: self.capacity,
+            });
+        }
+        Ok(free.max(1))
     }
 
     fn publish_plan(
