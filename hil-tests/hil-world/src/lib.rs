@@ -135,6 +135,17 @@ pub enum WorldError {
     /// iceoryx2.
     #[error("IPC: {0}")]
     Ipc(String),
+    /// The robot file's `carry_capacity` exceeds the tray's slots (the plans would load objects
+    /// the tray cannot hold).
+    #[error(
+        "robot file: carry_capacity = {carry_capacity} exceeds the world's {tray_slots} tray slots"
+    )]
+    CarryCapacity {
+        /// The robot file's `carry_capacity`.
+        carry_capacity: u32,
+        /// `WorldConfig::tray_slots`.
+        tray_slots: usize,
+    },
 }
 
 /// The ports the simulated UR5e listens on (for the executive's deployment).
@@ -188,6 +199,12 @@ impl World {
     /// Creates the clock, joins the bus, starts the simulated UR5e (externally stepped, on
     /// ephemeral loopback ports) and opens the topics.
     pub fn new(config: WorldConfig) -> Result<Self, WorldError> {
+        if config.robot.carry_capacity as usize > config.tray_slots.len() {
+            return Err(WorldError::CarryCapacity {
+                carry_capacity: config.robot.carry_capacity,
+                tray_slots: config.tray_slots.len(),
+            });
+        }
         let host = SimClockHost::create(
             &config.clock_name,
             HostConfig {

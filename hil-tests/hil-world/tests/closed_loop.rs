@@ -212,3 +212,48 @@ fn killing_the_planner_makes_the_executive_stop_the_base_and_abort() {
     );
     assert!(report.events.iter().any(|e| e.kind == "MissionAborted"));
 }
+
+/// A whole table setting over two trips: 6 objects with the robot file's tray of 3. The first
+/// plan unloads all 6; the executive loads twice at the station (each time at most 3 objects,
+/// as the world's tray holds) and the mission finishes with every object off the station.
+#[test]
+fn six_objects_with_a_tray_of_three_are_set_in_two_trips() {
+    let mut spec = spec("two-trips", 4);
+    spec.scene = world::generate::evaluation_scene(4, 15, 6);
+    spec.max_sim_s = 800.0;
+    assert_eq!(spec.robot.carry_capacity, 3);
+    let report = finish(start(&spec));
+    assert_eq!(
+        report.end,
+        MissionEnd::Finished,
+        "events: {:#?}",
+        report.events
+    );
+    assert_eq!(report.plans[0].unloads.len(), 6, "one plan for both trips");
+    // The executive's loading phases ("objects 0x.. on the tray"), not the world's.
+    let loads: Vec<&str> = report
+        .events
+        .iter()
+        .filter(|e| e.kind == "Loaded" && !e.detail.contains("put on"))
+        .map(|e| e.detail.as_str())
+        .collect();
+    assert!(loads.len() >= 2, "loading phases: {loads:?}");
+    let world_loads: Vec<&str> = report
+        .events
+        .iter()
+        .filter(|e| e.kind == "Loaded" && e.detail.contains("put on"))
+        .map(|e| e.detail.as_str())
+        .collect();
+    assert!(world_loads.len() >= 2, "world loads: {world_loads:?}");
+    for o in &report.objects {
+        assert!(
+            !matches!(o.state, ObjectState::AtStation | ObjectState::Held),
+            "{o:?}"
+        );
+    }
+    println!(
+        "two trips: placed {} of 6, {} plans, loads {loads:?}, world {world_loads:?}",
+        report.placed,
+        report.plans.len()
+    );
+}

@@ -653,3 +653,61 @@ fn realised_stops_follow_the_trial_simulators_navigation_noise() {
     let critical = 1.36 * ((n + m) / (n * m)).sqrt();
     assert!(d < critical, "KS distance {d:.3} >= {critical:.3}");
 }
+
+/// A robot file whose tray (`carry_capacity`) is larger than the executive's tray slots is
+/// refused at start with an error naming the field (plans would load objects with no slot).
+#[test]
+fn a_carry_capacity_above_the_tray_slots_is_refused() {
+    let ns = namespace("capacity");
+    let bus = MemoryBus::new();
+    let robot = RobotConfig {
+        carry_capacity: 4,
+        ..RobotConfig::default()
+    };
+    let config = ExecutiveConfig::for_robot(&robot);
+    assert_eq!(config.tray_slots.len(), 3);
+    let node = IpcNode::new(&ns, "executive").unwrap();
+    let clock = Arc::new(ManualClock::default());
+    let result = Executive::new(
+        config,
+        clock as Arc<dyn Clock>,
+        bus.join(),
+        FakeArm {
+            cycles: 40,
+            left: 0,
+            closed: false,
+            stopped: false,
+            moves: 0,
+        },
+        &node,
+        scene(),
+        3,
+    );
+    let Err(error) = result else {
+        panic!("a tray of 4 on 3 slots was accepted");
+    };
+    let text = error.to_string();
+    assert!(
+        text.contains("carry_capacity = 4") && text.contains("3 tray slots"),
+        "{text}"
+    );
+}
+
+/// The world refuses the same robot file: its tray (`WorldConfig::tray_slots`) has 3 slots.
+#[test]
+fn the_world_refuses_a_carry_capacity_above_its_tray_slots() {
+    let robot = RobotConfig {
+        carry_capacity: 4,
+        ..RobotConfig::default()
+    };
+    let config = hil_world::WorldConfig::new(&namespace("world-capacity"), scene(), robot, 1);
+    assert_eq!(config.tray_slots.len(), 3);
+    let Err(error) = hil_world::World::new(config) else {
+        panic!("a tray of 4 on 3 slots was accepted");
+    };
+    let text = error.to_string();
+    assert!(
+        text.contains("carry_capacity = 4") && text.contains("3 tray slots"),
+        "{text}"
+    );
+}

@@ -18,6 +18,13 @@
 //!   object) with the `HeatmapsMsg` it came from;
 //! * publishes a `HeartbeatMsg` (role Planner) every 100 ms of clock time.
 //!
+//! Whole table settings: when a request has more objects than the tray holds (the robot file's
+//! `carry_capacity`) or than the single-trip planner takes (12), the node plans trips
+//! ([`MultiTripPlanner`]) and publishes them in one plan: per trip a navigation to the station,
+//! one Load step with the trip's objects, then Navigate + Unload per object. Objects already on
+//! board are delivered first (single-trip planner, no station visit), then the trips. Otherwise
+//! it plans one trip exactly as before. Remainders after a failed unload keep the trips.
+//!
 //! What a request plans:
 //! * `MissionStart`: the objects of `remaining_mask` (all of the map's targets when 0) from the
 //!   request's pose (the planner's start is the pose, not the map's `robot_start`); the seed is
@@ -47,9 +54,10 @@ use std::time::{Duration, Instant};
 
 use grop_clock::Clock;
 use grop_ipc::{
-    CameraFrameMsg, HeartbeatMsg, HeatmapsMsg, IpcNode, MAX_TASK_STEPS, MessageError, NodeError,
-    PortError, ProcessRole, PublishError, ReceiveError, Received, ReplanReason, ReplanRequestMsg,
-    TableSide, TaskPlanMsg, TaskStep, TaskStepKind, TopicPublisher, TopicSubscriber,
+    CameraFrameMsg, HeartbeatMsg, HeatmapsMsg, IpcNode, MAX_HEATMAPS, MAX_TASK_STEPS, MessageError,
+    NodeError, PortError, ProcessRole, PublishError, ReceiveError, Received, ReplanReason,
+    ReplanRequestMsg, TableSide, TaskPlanMsg, TaskStep, TaskStepKind, TopicPublisher,
+    TopicSubscriber,
 };
 use planner::costs::{GridTravelTime, TravelTime};
 use planner::feasibility::{
@@ -57,8 +65,9 @@ use planner::feasibility::{
 };
 use planner::grop_plus::retry_goal;
 use planner::methods::{PlanError, PlannedTask, Planner, PlannerConfig, TaskMotionPlanner};
-use planner::problem::{TaskProblem, side_of_location};
+use planner::problem::{MAX_PROBLEM_OBJECTS, TaskProblem, side_of_location};
 use planner::task::{MAX_OBJECTS, location_index};
+use planner::trip_methods::{MultiTripError, MultiTripPlanner};
 use world::camera::{CameraError, FrameLayout, OverheadCamera, PixelFormat, cut_view};
 use world::nav::OccupancyGrid;
 use world::view::CROP_CELLS;
@@ -97,8 +106,11 @@ pub enum PlannerNodeError {
         source: fcn_infer::ModelLoadError,
     },
     /// The map's targets do not fit the planner.
-    #[error("the map has {0} targets; the planner node plans 1..={MAX_OBJECTS}")]
+    #[error("the map has {0} targets; the planner node plans 1..={MAX_PROBLEM_OBJECTS}")]
     TargetCount(usize),
+    /// The robot file's `carry_capacity` is not a tray the planner can plan for.
+    #[error("robot file: carry_capacity = {0} is not a tray the planner can plan for")]
+    CarryCapacity(u32),
     /// The iceoryx2 node.
     #[error(transparent)]
     Node(#[from] NodeError),
@@ -133,8 +145,21 @@ pub enum RequestError {
     /// The planner failed.
     #[error("planner: {0}")]
     Plan(#[from] PlanError),
+    /// The multi-trip planner failed.
+    #[error("multi-trip planner: {0}")]
+    Trips(#[from] MultiTripError),
+    /// The tray is full of objects the plan does not unload, and some must be loaded.
+    #[error(
+        "{kept} objects given up stay on the tray of {capacity} (carry_capacity): no room to load"
+    )]
+    TrayFull {
+        /// Objects on board that the plan does not unload.
+        kept: usize,
+        /// The tray.
+        capacity: usize,
+    },
     /// More objects than the planner takes.
-    #[error("{0} objects to plan; at most {MAX_OBJECTS}")]
+    #[error("{0} objects to plan; at most {MAX_PROBLEM_OBJECTS}")]
     TooManyObjects(usize),
     /// The plan or heatmaps do not fit their message.
     #[error("publishing: {0}")]
@@ -168,6 +193,8 @@ pub struct PlannerNode {
     grid: OccupancyGrid,
     psi: Box<dyn FeasibilityEvaluator>,
     planner: Planner,
+    /// Objects per trip (the robot file's `carry_capacity`).
+    capacity: usize,
     retry: RetryPolicy,
     seed: u64,
     /// Steps of the plan published last (to cut the remainder from).
@@ -229,8 +256,11 @@ impl PlannerNode {
         seed: u64,
     ) -> Result<Self, PlannerNodeError> {
         let n = scene.targets.len();
-        if n == 0 || n > MAX_OBJECTS {
+        if n == 0 || n > MAX_PROBLEM_OBJECTS {
             return Err(PlannerNodeError::TargetCount(n));
+        }
+        if robot.carry_capacity == 0 || robot.carry_capacity > world::robot::MAX_CARRY_CAPACITY {
+            return Err(PlannerNodeError::CarryCapacity(robot.carry_capacity));
         }
         let grid = OccupancyGrid::from_scene(&scene, &robot);
         let config = PlannerConfig {
@@ -247,6 +277,7 @@ impl PlannerNode {
             newest_frame: None,
             pending: None,
             planner: Planner::new(settings.method, config),
+            capacity: robot.carry_capacity as usize,
             retry: settings.retry,
             seed,
             scene,
@@ -262,14 +293,15 @@ impl PlannerNode {
             overruns: 0,
             failures: 0,
             last_error: None,
-            crops: vec![[0; CROP_CELLS]; 2 * MAX_OBJECTS],
-            heat_buffers: vec![Heatmap::zeros(); 2 * MAX_OBJECTS],
+            crops: vec![[0; CROP_CELLS]; 2 * n],
+            heat_buffers: vec![Heatmap::zeros(); 2 * n],
             _ipc: ipc,
         };
         log::info!(
-            "planner node on `{namespace}`: {} with {} targets, retry {:?}, seed {seed}",
+            "planner node on `{namespace}`: {} with {} targets, a tray of {}, retry {:?}, seed {seed}",
             node.planner.kind.name(),
             n,
+            node.capacity,
             node.retry
         );
         Ok(node)
@@ -490,11 +522,21 @@ impl PlannerNode {
         now: Duration,
     ) -> Result<Answer, RequestError> {
         let started = Instant::now();
-        let objects: Vec<usize> = (0..self.scene.targets.len())
+        let mut objects: Vec<usize> = (0..self.scene.targets.len())
             .filter(|i| objects_mask & (1 << i) != 0)
             .collect();
-        if objects.len() > MAX_OBJECTS {
+        if objects.len() > MAX_PROBLEM_OBJECTS {
             return Err(RequestError::TooManyObjects(objects.len()));
+        }
+        // Objects on the tray that this plan does not unload (given up after a failed unload)
+        // keep their slots.
+        let free = self.tray_free(request, objects_mask)?;
+        // One trip when the tray takes everything (the single-trip planner, exactly as before);
+        // otherwise trips, the objects already on board first (delivered before the next
+        // station visit).
+        let single_trip = objects.len() <= free.min(MAX_OBJECTS);
+        if !single_trip {
+            objects.sort_by_key(|&o| on_board & (1 << o) == 0);
         }
         if objects.is_empty() {
             let frame_id = self.newest_frame.as_ref().map_or(0, |f| f.header.frame_id);
@@ -556,52 +598,186 @@ impl PlannerNode {
         let mut problem = TaskProblem::from_heatmaps(&self.scene, &self.robot, &targets, heatmaps);
         let pose_xy = (request.pose[0], request.pose[1]);
         problem.start_xy = pose_xy;
-        let all_on_board = objects.iter().all(|&o| on_board & (1 << o) != 0);
-        if all_on_board {
-            problem.station_xy = pose_xy;
-        }
         let seed = match request.reason()? {
             ReplanReason::MissionStart => self.seed,
             _ => world::generate::mix_seed(self.seed, 0x7265_706c, request.request_id),
         };
-        let mut travel = GridTravelTime::new(&self.grid, self.robot.speed_mps);
-        let decision = self.planner.plan(&problem, &mut travel, seed)?;
-        self.last_problem = Some((objects.clone(), problem));
-        let load_mask = if all_on_board {
-            0
-        } else {
-            objects_mask & !on_board
-        };
-        let steps = self.steps_of(
-            &decision,
-            &objects,
-            &targets,
-            load_mask,
-            pose_xy,
-            &mut travel,
-        );
-        let frame_id = header.frame_id;
-        let totals = (decision.feasibility, decision.cost_s, decision.utility);
-        // Heatmaps first: a reader of the plan finds the heatmaps it came from.
-        let heatmaps = &self.heat_buffers[..m];
-        self.heatmaps.publish_with(|msg| {
-            msg.stamp_ns = duration_ns(now);
-            msg.source_frame_id = frame_id;
-            msg.count = m as u32;
-            for (i, (slot, h)) in msg.locations.iter_mut().zip(heatmaps).enumerate() {
-                slot.object_index = objects[i / 2] as u32;
-                slot.side = i32::from(side_of_location(i).sign());
-                slot.target_m = targets[i / 2];
-                slot.feasibility = decision.locations[i].feasibility;
-                slot.values.copy_from_slice(h.values());
+        let (steps, totals, feasibility_of) = if single_trip {
+            let all_on_board = objects.iter().all(|&o| on_board & (1 << o) != 0);
+            if all_on_board {
+                problem.station_xy = pose_xy;
             }
-        })?;
-        log::debug!("{}", decision.explain(3));
+            let mut travel = GridTravelTime::new(&self.grid, self.robot.speed_mps);
+            let decision = self.planner.plan(&problem, &mut travel, seed)?;
+            self.last_problem = Some((objects.clone(), problem));
+            let load_mask = if all_on_board {
+                0
+            } else {
+                objects_mask & !on_board
+            };
+            let steps = self.steps_of(
+                &decision,
+                &objects,
+                &targets,
+                load_mask,
+                pose_xy,
+                &mut travel,
+            );
+            log::debug!("{}", decision.explain(3));
+            let feasibility_of: Vec<f64> =
+                decision.locations.iter().map(|l| l.feasibility).collect();
+            (
+                steps,
+                (decision.feasibility, decision.cost_s, decision.utility),
+                feasibility_of,
+            )
+        } else {
+            let planned = self.plan_trips(&objects, &targets, on_board, pose_xy, seed, free)?;
+            self.last_problem = Some((objects.clone(), problem));
+            planned
+        };
+        let frame_id = header.frame_id;
+        // Heatmaps first: a reader of the plan finds the heatmaps it came from. More than 12
+        // objects take several messages of MAX_HEATMAPS locations, same source frame.
+        for first in (0..m).step_by(MAX_HEATMAPS) {
+            let chunk = &self.heat_buffers[first..m.min(first + MAX_HEATMAPS)];
+            self.heatmaps.publish_with(|msg| {
+                msg.stamp_ns = duration_ns(now);
+                msg.source_frame_id = frame_id;
+                msg.count = chunk.len() as u32;
+                for (k, (slot, h)) in msg.locations.iter_mut().zip(chunk).enumerate() {
+                    let i = first + k;
+                    slot.object_index = objects[i / 2] as u32;
+                    slot.side = i32::from(side_of_location(i).sign());
+                    slot.target_m = targets[i / 2];
+                    slot.feasibility = feasibility_of[i];
+                    slot.values.copy_from_slice(h.values());
+                }
+            })?;
+        }
         self.publish_plan(request, frame_id, &steps, totals, started, now)
             .map(|a| Answer {
                 replanned: true,
                 ..a
             })
+    }
+
+    /// Several trips over `objects` (those on board first, then those at the station, as
+    /// `plan_and_publish` orders them; `targets` and the heatmap buffers in the same order): the
+    /// objects on board are delivered first with the single-trip planner (station on the pose,
+    /// no station visit), then the multi-trip planner ([`MultiTripPlanner`], a tray of
+    /// `carry_capacity`) plans the objects at the station from where that leaves the robot.
+    /// Per trip: navigate to the station, one load step with the trip's objects, navigate +
+    /// unload per object. Returns the steps, (F, C, U) of the steps (C = the sum of their legs,
+    /// U = R F - C) and `Fea^t` per location in `objects` order.
+    #[allow(clippy::type_complexity)]
+    fn plan_trips(
+        &mut self,
+        objects: &[usize],
+        targets: &[[f64; 3]],
+        on_board: u64,
+        pose_xy: (f64, f64),
+        seed: u64,
+        capacity: usize,
+    ) -> Result<(Vec<TaskStep>, (f64, f64, f64), Vec<f64>), RequestError> {
+        let n_board = objects
+            .iter()
+            .take_while(|&&o| on_board & (1 << o) != 0)
+            .count();
+        let mut travel = GridTravelTime::new(&self.grid, self.robot.speed_mps);
+        let no_path_s = self.planner.config.no_path_cost_s;
+        let mut steps = Vec::new();
+        let mut feasibility_of = Vec::with_capacity(2 * objects.len());
+        let mut at = pose_xy;
+        if n_board > 0 {
+            let mut problem = TaskProblem::from_heatmaps(
+                &self.scene,
+                &self.robot,
+                &targets[..n_board],
+                &self.heat_buffers[..2 * n_board],
+            );
+            problem.start_xy = pose_xy;
+            problem.station_xy = pose_xy;
+            let decision = self.planner.plan(&problem, &mut travel, seed)?;
+            steps = self.steps_of(
+                &decision,
+                &objects[..n_board],
+                &targets[..n_board],
+                0,
+                pose_xy,
+                &mut travel,
+            );
+            feasibility_of.extend(decision.locations.iter().map(|l| l.feasibility));
+            if let Some(last) = decision.plan.unloads.last() {
+                at = decision.goal_of(last).xy;
+            }
+        }
+        let rest = &objects[n_board..];
+        if !rest.is_empty() {
+            let mut problem = TaskProblem::from_heatmaps(
+                &self.scene,
+                &self.robot,
+                &targets[n_board..],
+                &self.heat_buffers[2 * n_board..2 * objects.len()],
+            );
+            problem.start_xy = at;
+            let trips = MultiTripPlanner::new(self.planner.kind, self.planner.config, capacity)
+                .plan(&problem, &mut travel, seed)?;
+            log::debug!(
+                "{} trips over {} objects: U {:.2}, F {:.3}, C {:.1} s, bound {:?}",
+                trips.plan.trips.len(),
+                rest.len(),
+                trips.utility,
+                trips.feasibility,
+                trips.cost_s,
+                trips.search.map(|r| r.upper_bound)
+            );
+            feasibility_of.extend(trips.locations.iter().map(|l| l.feasibility));
+            let station = (
+                self.scene.loading_station.x_m,
+                self.scene.loading_station.y_m,
+            );
+            let mut leg = |from: (f64, f64), to: (f64, f64)| {
+                travel.travel_time_s(from, to).unwrap_or(no_path_s)
+            };
+            for trip in &trips.plan.trips {
+                let mask = trip
+                    .load_order
+                    .iter()
+                    .fold(0u64, |m, &o| m | (1u64 << rest[o]));
+                steps.push(TaskStep::navigate(
+                    station.0,
+                    station.1,
+                    self.station_yaw_rad(),
+                    leg(at, station),
+                ));
+                steps.push(TaskStep::load(mask, station.0, station.1));
+                at = station;
+                for u in &trip.unloads {
+                    let goal = trips.goal_of(u);
+                    let mut nav =
+                        TaskStep::navigate(goal.xy.0, goal.xy.1, goal.yaw_rad, leg(at, goal.xy));
+                    nav.side = i32::from(u.side.sign());
+                    steps.push(nav);
+                    steps.push(TaskStep::unload(
+                        rest[u.object] as u32,
+                        table_side(u.side),
+                        targets[n_board + u.object],
+                        [goal.xy.0, goal.xy.1, goal.yaw_rad],
+                        trips.locations[location_index(u.object, u.side)].feasibility,
+                    ));
+                    at = goal.xy;
+                }
+            }
+        }
+        let feasibility: f64 = steps
+            .iter()
+            .filter(|s| s.kind() == Ok(TaskStepKind::Unload))
+            .map(|s| s.feasibility)
+            .sum();
+        let cost_s: f64 = steps.iter().map(|s| s.travel_cost_s).sum();
+        let utility = self.planner.config.success_bonus_r * feasibility - cost_s;
+        Ok((steps, (feasibility, cost_s, utility), feasibility_of))
     }
 
     /// The plan's steps: station visit and load (if anything must be loaded), then per unload
@@ -706,44 +882,78 @@ impl PlannerNode {
             return self.plan_and_publish(request, left, on_board, now);
         };
         let frame_id = current.source_frame_id;
-        let mut pairs: Vec<(TaskStep, TaskStep)> = first.into_iter().collect();
+        let free = self.tray_free(request, left)?;
+        // Groups of (navigate, unload): first the objects on board (the retry first), then, per
+        // trip of the current plan, its objects still at the station (one station visit each).
+        let mut groups: Vec<Vec<(TaskStep, TaskStep)>> = vec![first.into_iter().collect()];
         let retried = first.map_or(0, |(_, u)| 1u64 << u.object_index);
         for w in current.steps.windows(2) {
+            if w[1].kind() == Ok(TaskStepKind::Load) {
+                groups.push(Vec::new());
+            }
             if w[1].kind() == Ok(TaskStepKind::Unload)
-                && w[1].object().is_ok_and(|o| left & !retried & (1 << o) != 0)
+                && let Ok(o) = w[1].object()
+                && left & !retried & (1 << o) != 0
             {
-                pairs.push((w[0], w[1]));
+                let group = if on_board & (1 << o) != 0 {
+                    0
+                } else {
+                    groups.len() - 1
+                };
+                groups[group].push((w[0], w[1]));
             }
         }
         let mut travel = GridTravelTime::new(&self.grid, self.robot.speed_mps);
         let no_path_s = self.planner.config.no_path_cost_s;
         let mut at = (request.pose[0], request.pose[1]);
-        let mut steps = Vec::with_capacity(2 + 2 * pairs.len());
-        let to_load = left & !on_board;
-        if to_load != 0 {
-            let station = (
-                self.scene.loading_station.x_m,
-                self.scene.loading_station.y_m,
-            );
-            let cost = travel.travel_time_s(at, station).unwrap_or(no_path_s);
-            steps.push(TaskStep::navigate(
-                station.0,
-                station.1,
-                self.station_yaw_rad(),
-                cost,
-            ));
-            steps.push(TaskStep::load(to_load, station.0, station.1));
-            at = station;
-        }
+        let mut steps = Vec::with_capacity(current.steps.len() + 2);
+        let station = (
+            self.scene.loading_station.x_m,
+            self.scene.loading_station.y_m,
+        );
+        // A trip of the current plan larger than the tray's free slots (an object given up stays
+        // on the tray) becomes several station visits, in the same order.
+        let groups: Vec<Vec<(TaskStep, TaskStep)>> = groups
+            .into_iter()
+            .enumerate()
+            .flat_map(|(g, pairs)| {
+                if g == 0 || pairs.len() <= free {
+                    vec![pairs]
+                } else {
+                    pairs.chunks(free).map(<[_]>::to_vec).collect()
+                }
+            })
+            .collect();
         let (mut feasibility, mut cost_s) = (0.0, 0.0);
-        for (mut nav, unload) in pairs {
-            nav.travel_cost_s = travel
-                .travel_time_s(at, (nav.x_m, nav.y_m))
-                .unwrap_or(no_path_s);
-            at = (nav.x_m, nav.y_m);
-            feasibility += unload.feasibility;
-            steps.push(nav);
-            steps.push(unload);
+        for (g, pairs) in groups.into_iter().enumerate() {
+            let to_load = pairs
+                .iter()
+                .filter_map(|(_, u)| u.object().ok())
+                .fold(0u64, |m, o| m | (1u64 << o))
+                & !on_board;
+            if g > 0 && to_load == 0 {
+                continue;
+            }
+            if to_load != 0 {
+                let cost = travel.travel_time_s(at, station).unwrap_or(no_path_s);
+                steps.push(TaskStep::navigate(
+                    station.0,
+                    station.1,
+                    self.station_yaw_rad(),
+                    cost,
+                ));
+                steps.push(TaskStep::load(to_load, station.0, station.1));
+                at = station;
+            }
+            for (mut nav, unload) in pairs {
+                nav.travel_cost_s = travel
+                    .travel_time_s(at, (nav.x_m, nav.y_m))
+                    .unwrap_or(no_path_s);
+                at = (nav.x_m, nav.y_m);
+                feasibility += unload.feasibility;
+                steps.push(nav);
+                steps.push(unload);
+            }
         }
         for s in &steps {
             cost_s += s.travel_cost_s;
@@ -757,6 +967,25 @@ impl PlannerNode {
             started,
             now,
         )
+    }
+
+    /// Free tray slots for a plan over `objects_mask`: the tray (`carry_capacity`) less the
+    /// objects on board (`request.on_board_mask`) that the plan does not unload. None free while
+    /// something must be loaded is an error.
+    fn tray_free(
+        &self,
+        request: &ReplanRequestMsg,
+        objects_mask: u64,
+    ) -> Result<usize, RequestError> {
+        let kept = (request.on_board_mask & !objects_mask).count_ones() as usize;
+        let free = self.capacity.saturating_sub(kept);
+        if free == 0 && objects_mask & !request.on_board_mask != 0 {
+            return Err(RequestError::TrayFull {
+                kept,
+                capacity: self.capacity,
+            });
+        }
+        Ok(free.max(1))
     }
 
     fn publish_plan(

@@ -590,3 +590,284 @@ fn requests_wait_for_a_frame_and_bad_frames_are_survived() {
     assert_eq!(answer.request_id, 2);
     assert_eq!(answer.step_count, 2 + 2 * scene.targets.len());
 }
+
+/// Objects of the unloads in `steps`, as a bit set.
+fn unload_mask(steps: &[TaskStep]) -> u64 {
+    steps
+        .iter()
+        .filter(|s| s.kind() == Ok(TaskStepKind::Unload))
+        .fold(0, |m, s| m | (1u64 << s.object().unwrap()))
+}
+
+/// Checks a multi-trip plan's shape against the tray: every step decodes; every station visit
+/// (navigate to the station, load) loads objects none of which is on board (`on_board`: the tray
+/// at the start) and never more than `capacity` on the tray; at a station visit the tray holds
+/// only objects the plan never unloads (given up); every unload is of an object on board, at most
+/// once; C is the sum of the legs and F the sum of the unloads'. Returns the load masks in order.
+fn check_trips(plan: &TaskPlanMsg, scene: &Scene, capacity: usize, mut on_board: u64) -> Vec<u64> {
+    let steps = plan.steps().unwrap();
+    for s in steps {
+        s.kind().unwrap();
+    }
+    let station = (scene.loading_station.x_m, scene.loading_station.y_m);
+    let mut loads = Vec::new();
+    let mut unloaded = 0u64;
+    let mut at_visits = 0u64;
+    let mut i = 0;
+    while i < steps.len() {
+        if steps[i].kind() == Ok(TaskStepKind::Load) {
+            panic!("a load step without a navigation to the station before it");
+        }
+        if i + 1 < steps.len() && steps[i + 1].kind() == Ok(TaskStepKind::Load) {
+            assert_eq!(steps[i].kind(), Ok(TaskStepKind::Navigate));
+            assert_eq!((steps[i].x_m, steps[i].y_m), station);
+            let mask = steps[i + 1].load_mask;
+            assert_ne!(mask, 0);
+            assert_eq!(on_board & mask, 0);
+            at_visits |= on_board;
+            on_board |= mask;
+            assert!(on_board.count_ones() as usize <= capacity, "{on_board:#x}");
+            loads.push(mask);
+            i += 2;
+            continue;
+        }
+        let (nav, unload) = (steps[i], steps[i + 1]);
+        assert_eq!(nav.kind(), Ok(TaskStepKind::Navigate));
+        assert_eq!(unload.kind(), Ok(TaskStepKind::Unload));
+        assert_eq!(nav.side, unload.side);
+        assert_eq!(
+            (nav.x_m, nav.y_m, nav.yaw_rad),
+            (unload.x_m, unload.y_m, unload.yaw_rad)
+        );
+        let bit = 1u64 << unload.object().unwrap();
+        assert_ne!(
+            on_board & bit,
+            0,
+            "object {} is not on board",
+            unload.object_index
+        );
+        assert_eq!(unloaded & bit, 0, "object {} twice", unload.object_index);
+        on_board &= !bit;
+        unloaded |= bit;
+        i += 2;
+    }
+    assert_eq!(
+        at_visits & unloaded,
+        0,
+        "only objects given up stay on the tray at a station visit"
+    );
+    let legs: f64 = steps.iter().map(|s| s.travel_cost_s).sum();
+    assert!(
+        (legs - plan.cost_s).abs() < 1e-6,
+        "legs {legs} vs C {}",
+        plan.cost_s
+    );
+    let f: f64 = steps
+        .iter()
+        .filter(|s| s.kind() == Ok(TaskStepKind::Unload))
+        .map(|s| s.feasibility)
+        .sum();
+    assert!((f - plan.feasibility).abs() < 1e-9);
+    assert!((plan.utility - (plan.reward * plan.feasibility - plan.cost_s)).abs() < 1e-6);
+    loads
+}
+
+/// Six objects with the default tray of 3: one plan message of two trips (station, load 3,
+/// 3 x (navigate, unload)), exactly the multi-trip planner's trips on the node's own problem;
+/// then a failed unload in the first trip, answered by each retry policy over both trips: the
+/// objects on board are delivered first, then one station visit for the second trip's objects.
+#[test]
+fn six_objects_with_a_tray_of_three_are_planned_as_two_trips() {
+    use TaskStepKind::{Load, Navigate, Unload};
+    let robot = RobotConfig::default();
+    assert_eq!(robot.carry_capacity, 3);
+    let scene = world::generate::evaluation_scene(4, 20, 6);
+    let all = 0b11_1111u64;
+    for retry in [
+        RetryPolicy::None,
+        RetryPolicy::Replan,
+        RetryPolicy::GropPlus,
+    ] {
+        let ns = unique_namespace("trips");
+        let settings = PlannerSettings {
+            retry,
+            ..PlannerSettings::default()
+        };
+        let mut node = PlannerNode::new(
+            &ns,
+            scene.clone(),
+            robot.clone(),
+            Box::new(psi()),
+            settings,
+            5,
+        )
+        .unwrap();
+        let p = peers(&ns);
+        publish_frame(&p.camera, &scene, 3);
+        p.requests
+            .publish(&request(
+                1,
+                ReplanReason::MissionStart,
+                start_pose(&scene),
+                0,
+            ))
+            .unwrap();
+        let mut now = Duration::from_secs(1);
+        let answer = step_until_answer(&mut node, &mut now);
+        assert!(answer.replanned);
+        let plan = newest(&p.plans);
+        assert_eq!(plan.object_count, 6);
+        let steps = plan.steps().unwrap().to_vec();
+        let trip = [
+            Navigate, Load, Navigate, Unload, Navigate, Unload, Navigate, Unload,
+        ];
+        assert_eq!(kinds(&steps), [trip, trip].concat());
+        let loads = check_trips(&plan, &scene, 3, 0);
+        assert_eq!(loads.len(), 2);
+        assert_eq!(loads[0] | loads[1], all);
+        assert_eq!(loads[0] & loads[1], 0);
+        assert_eq!(unload_mask(&steps), all);
+        assert_eq!(newest(&p.heatmaps).locations().unwrap().len(), 12);
+
+        // The node's trips are the multi-trip planner's on the node's problem.
+        let (objects, problem) = node.last_problem().unwrap();
+        let grid = world::nav::OccupancyGrid::from_scene(&scene, &robot);
+        let mut travel = GridTravelTime::new(&grid, robot.speed_mps);
+        let offline = planner::trip_methods::MultiTripPlanner::new(
+            MethodKind::GropPlus,
+            node.planner_config(),
+            3,
+        )
+        .plan(problem, &mut travel, 5)
+        .unwrap();
+        let offline_unloads: Vec<(usize, Side)> = offline
+            .plan
+            .unloads()
+            .map(|u| (objects[u.object], u.side))
+            .collect();
+        assert_eq!(unloads(&steps), offline_unloads);
+
+        // The first unload fails: trip 1's three objects are on board.
+        let failed = steps[3];
+        let mut failure = request(
+            2,
+            ReplanReason::UnloadFailed,
+            [failed.x_m, failed.y_m, failed.yaw_rad],
+            all,
+        );
+        failure.failed_object = failed.object_index;
+        failure.failed_side = failed.side;
+        failure.failed_goal_m = [failed.x_m, failed.y_m];
+        failure.on_board_mask = loads[0];
+        p.requests.publish(&failure).unwrap();
+        let answer = step_until_answer(&mut node, &mut now);
+        let plan = newest(&p.plans);
+        assert_eq!(plan.answers_request, 2);
+        let after = plan.steps().unwrap();
+        let failed_bit = 1u64 << failed.object_index;
+        let second = check_trips(&plan, &scene, 3, loads[0]);
+        if unload_mask(after) & failed_bit != 0 {
+            assert_eq!(
+                second,
+                [loads[1]],
+                "one station visit, for trip 2's objects"
+            );
+        } else {
+            // The object given up keeps its slot: trip 2 takes two station visits.
+            assert_eq!(second.len(), 2, "{second:x?}");
+            assert_eq!(second[0] | second[1], loads[1]);
+        }
+        match retry {
+            RetryPolicy::None => {
+                assert!(!answer.replanned);
+                assert_eq!(unload_mask(after), all & !failed_bit);
+                // Same goals, same order as the first plan without the failed object.
+                let expected: Vec<(usize, Side)> = unloads(&steps)[1..].to_vec();
+                assert_eq!(unloads(after), expected);
+            }
+            RetryPolicy::Replan => {
+                assert!(answer.replanned);
+                assert_eq!(unload_mask(after), all, "the failed object is tried again");
+            }
+            RetryPolicy::GropPlus => {
+                assert!(!answer.replanned);
+                let first = unloads(after)[0].0;
+                if unload_mask(after) == all {
+                    assert_eq!(first, failed.object_index as usize, "the retry comes first");
+                } else {
+                    assert_eq!(unload_mask(after), all & !failed_bit);
+                }
+            }
+        }
+    }
+}
+
+/// The largest tasks: 12 place settings (36 objects) with a tray of 3 are 12 trips of
+/// 2 + 2 x 3 steps = 96 steps; a tray of 1 makes 4 steps per object, so 32 objects fill the
+/// message's 128 steps exactly and 33 do not fit: that request is refused with a clear error,
+/// the node goes on.
+#[test]
+fn largest_tasks_fit_the_plan_message_and_larger_are_refused() {
+    let cases: [(usize, u32, u64, Option<usize>); 3] = [
+        (12, 3, 0, Some(96)),
+        (11, 1, (1u64 << 32) - 1, Some(128)),
+        (11, 1, 0, None),
+    ];
+    for (settings_count, capacity, remaining, expected_steps) in cases {
+        let scene = world::table_settings::table_settings_scene(2, settings_count).unwrap();
+        let robot = RobotConfig {
+            carry_capacity: capacity,
+            ..RobotConfig::default()
+        };
+        let ns = unique_namespace("largest");
+        let mut node = PlannerNode::new(
+            &ns,
+            scene.clone(),
+            robot,
+            Box::new(psi()),
+            PlannerSettings::default(),
+            9,
+        )
+        .unwrap();
+        let p = peers(&ns);
+        publish_frame(&p.camera, &scene, 1);
+        p.requests
+            .publish(&request(
+                1,
+                ReplanReason::MissionStart,
+                start_pose(&scene),
+                remaining,
+            ))
+            .unwrap();
+        let mut now = Duration::from_secs(1);
+        match expected_steps {
+            Some(count) => {
+                let answer = step_until_answer(&mut node, &mut now);
+                assert_eq!(answer.step_count, count);
+                let plan = newest(&p.plans);
+                let loads = check_trips(&plan, &scene, capacity as usize, 0);
+                let n = if remaining == 0 {
+                    scene.targets.len()
+                } else {
+                    remaining.count_ones() as usize
+                };
+                assert_eq!(loads.len(), n.div_ceil(capacity as usize));
+                assert_eq!(unload_mask(plan.steps().unwrap()).count_ones() as usize, n);
+                println!(
+                    "{n} objects, tray {capacity}: {count} steps, decision {} us",
+                    plan.decision_us
+                );
+            }
+            None => {
+                for _ in 0..20 {
+                    now += Duration::from_millis(10);
+                    assert_eq!(node.step(now).unwrap(), None);
+                }
+                let (failures, why) = node.failures();
+                assert_eq!(failures, 1);
+                let why = why.unwrap();
+                assert!(why.contains("steps") && why.contains("128"), "{why}");
+            }
+        }
+    }
+}

@@ -170,7 +170,21 @@ pub enum ExecutiveError {
     /// The path worker could not start.
     #[error("path worker: {0}")]
     Worker(std::io::Error),
+    /// The robot file's `carry_capacity` exceeds the tray's slots: plans would load objects the
+    /// tray cannot hold.
+    #[error(
+        "robot file: carry_capacity = {carry_capacity} exceeds the {tray_slots} tray slots of the executive"
+    )]
+    CarryCapacity {
+        /// The robot file's `carry_capacity`.
+        carry_capacity: u32,
+        /// Usable tray slots (`ExecutiveConfig::tray_slots`, at most [`MAX_TRAY_SLOTS`]).
+        tray_slots: usize,
+    },
 }
+
+/// Most tray slots the executive tracks.
+pub const MAX_TRAY_SLOTS: usize = 8;
 
 /// How the mission ended (or is going).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -307,7 +321,7 @@ pub struct Executive<B: CanBus, A: ArmDevice> {
     /// Objects not yet placed (or given up), bit i = object i.
     remaining: u64,
     /// Tray slot -> object.
-    slots: [Option<u32>; 8],
+    slots: [Option<u32>; MAX_TRAY_SLOTS],
     planner_seen: Option<Duration>,
     next_path_id: u64,
     velocity: Twist,
@@ -354,6 +368,13 @@ impl<B: CanBus, A: ArmDevice> Executive<B, A> {
         scene: Scene,
         objects: usize,
     ) -> Result<Self, ExecutiveError> {
+        let tray_slots = config.tray_slots.len().min(MAX_TRAY_SLOTS);
+        if config.robot.carry_capacity as usize > tray_slots {
+            return Err(ExecutiveError::CarryCapacity {
+                carry_capacity: config.robot.carry_capacity,
+                tray_slots,
+            });
+        }
         let mut base_config = rmp_base::RmpBaseConfig {
             command_period: config.cycle * config.base_every,
             ..rmp_base::RmpBaseConfig::default()
@@ -434,7 +455,7 @@ impl<B: CanBus, A: ArmDevice> Executive<B, A> {
             last_request: zero_request(),
             jump_hold_until: None,
             remaining,
-            slots: [None; 8],
+            slots: [None; MAX_TRAY_SLOTS],
             planner_seen: None,
             next_path_id: 1,
             velocity: Twist::ZERO,
@@ -742,6 +763,14 @@ impl<B: CanBus, A: ArmDevice> Executive<B, A> {
             );
             return;
         };
+        if let Err(why) = self.check_tray(steps) {
+            self.event(
+                EventKind::StaleInput,
+                now,
+                format_args!("plan {} rejected: {why}", plan.plan_id),
+            );
+            return;
+        }
         self.stats.plans += 1;
         self.steps.clear();
         self.steps.extend_from_slice(steps);
@@ -763,6 +792,38 @@ impl<B: CanBus, A: ArmDevice> Executive<B, A> {
                 plan.cost_s
             ),
         );
+    }
+
+    /// Whether the plan's loads fit the tray: from what is on board now, every load step adds
+    /// its objects not yet on board, every unload frees its object; never more than the usable
+    /// slots at once.
+    fn check_tray(&self, steps: &[TaskStep]) -> Result<(), String> {
+        let slots = self.slots.len().min(self.tray.pick.len());
+        let mut on_board = self
+            .slots
+            .iter()
+            .flatten()
+            .fold(0u64, |m, &o| m | (1u64 << o.min(63)));
+        for (i, step) in steps.iter().enumerate() {
+            match step.kind() {
+                Ok(TaskStepKind::Load) => {
+                    on_board |= step.load_mask;
+                    let count = on_board.count_ones() as usize;
+                    if count > slots {
+                        return Err(format!(
+                            "step {i} loads {count} objects onto a tray of {slots} slots"
+                        ));
+                    }
+                }
+                Ok(TaskStepKind::Unload) => {
+                    if let Ok(o) = step.object() {
+                        on_board &= !(1u64 << o);
+                    }
+                }
+                _ => {}
+            }
+        }
+        Ok(())
     }
 
     fn request_plan(&mut self, reason: ReplanReason, now: Duration, failed: Option<&TaskStep>) {
