@@ -3,8 +3,9 @@
 use nalgebra::{Point3, Vector3};
 use ur5e_kin::{BasePose, ObstacleBox};
 
+use crate::geometry::OrientedRect;
 use crate::robot::{BaseCollisionModel, RobotConfig};
-use crate::scene::{Scene, TABLE_CENTER_Y_M};
+use crate::scene::{Chair, Scene, TABLE_CENTER_Y_M};
 
 /// Obstacles farther than this from the arm's base (m, in the floor plane) cannot be touched by
 /// the arm: UR5e reach 0.85 m from the shoulder axis plus a Robotiq 2F-140 and margin. Boxes
@@ -44,33 +45,41 @@ pub fn base_collides(scene: &Scene, robot: &RobotConfig, base: BasePose) -> bool
             .any(|c| c.footprint().overlaps(&footprint))
 }
 
+/// The box `[x0, x1] x [y0, y1]` grown by the reach of a base centred in it, plus a margin so
+/// rounding can never drop a chair that touches.
+fn near_box(robot: &RobotConfig, x0: f64, x1: f64, y0: f64, y1: f64) -> (f64, f64, f64, f64) {
+    let reach_m = match robot.base_collision {
+        BaseCollisionModel::ChairDiscs { radius_m } => radius_m,
+        _ => 0.5 * robot.footprint.length_m.hypot(robot.footprint.width_m),
+    };
+    (
+        x0 - reach_m - 0.01,
+        x1 + reach_m + 0.01,
+        y0 - reach_m - 0.01,
+        y1 + reach_m + 0.01,
+    )
+}
+
+/// Whether `chair` reaches into the grown box of [`near_box`].
+fn chair_near(robot: &RobotConfig, c: &Chair, (x0, x1, y0, y1): (f64, f64, f64, f64)) -> bool {
+    let (cx0, cx1, cy0, cy1) = c.footprint().bounds();
+    // Disc model: the chair counts by its centre.
+    let (cx0, cx1, cy0, cy1) = match robot.base_collision {
+        BaseCollisionModel::ChairDiscs { .. } => (c.x_m, c.x_m, c.y_m, c.y_m),
+        _ => (cx0, cx1, cy0, cy1),
+    };
+    cx1 >= x0 && cx0 <= x1 && cy1 >= y0 && cy0 <= y1
+}
+
 impl Scene {
     /// A copy of the scene keeping only the chairs a base centred inside the box
     /// `[x0, x1] x [y0, y1]` could touch (tables, walls and targets stay): [`base_collides`] on it
     /// answers exactly as on the whole scene for every base in the box, with fewer chairs to
     /// test. For many checks around one place (a location's candidate cells).
     pub fn chairs_near(&self, robot: &RobotConfig, x0: f64, x1: f64, y0: f64, y1: f64) -> Scene {
-        let reach_m = match robot.base_collision {
-            BaseCollisionModel::ChairDiscs { radius_m } => radius_m,
-            _ => 0.5 * robot.footprint.length_m.hypot(robot.footprint.width_m),
-        };
-        // A margin over the reach so rounding can never drop a chair that touches.
-        let (x0, x1, y0, y1) = (
-            x0 - reach_m - 0.01,
-            x1 + reach_m + 0.01,
-            y0 - reach_m - 0.01,
-            y1 + reach_m + 0.01,
-        );
+        let near_box = near_box(robot, x0, x1, y0, y1);
         let mut near = self.clone();
-        near.chairs.retain(|c| {
-            let (cx0, cx1, cy0, cy1) = c.footprint().bounds();
-            // Disc model: the chair counts by its centre.
-            let (cx0, cx1, cy0, cy1) = match robot.base_collision {
-                BaseCollisionModel::ChairDiscs { .. } => (c.x_m, c.x_m, c.y_m, c.y_m),
-                _ => (cx0, cx1, cy0, cy1),
-            };
-            cx1 >= x0 && cx0 <= x1 && cy1 >= y0 && cy0 <= y1
-        });
+        near.chairs.retain(|c| chair_near(robot, c, near_box));
         near
     }
 
@@ -198,5 +207,133 @@ impl Scene {
                 });
             }
         }
+    }
+}
+
+/// [`base_collides`] for many bases at one heading whose centres lie in one box (a location's
+/// candidate cells): the obstacles' footprints (tables, the chairs a base in the box can touch)
+/// and the base footprint's orientation are computed once, so each check is only the overlap
+/// tests. Answers exactly as `base_collides(scene, robot, pose)` for every pose with this yaw and
+/// its centre in the box (the same floating-point operations on the same values).
+#[derive(Debug, Clone)]
+pub struct BaseCollisionChecker {
+    room: crate::scene::Room,
+    /// The base footprint at (0, 0) with the checker's yaw; moved per check.
+    base: OrientedRect,
+    tables: [OrientedRect; 2],
+    chairs: Vec<OrientedRect>,
+    /// Chair centres, for the disc model.
+    chair_centres: Vec<(f64, f64)>,
+    /// `Some(r^2)`: [`BaseCollisionModel::ChairDiscs`] of radius r.
+    disc_r2: Option<f64>,
+}
+
+impl BaseCollisionChecker {
+    /// A checker for bases facing `yaw_rad` centred inside `[x0, x1] x [y0, y1]`.
+    pub fn new(
+        scene: &Scene,
+        robot: &RobotConfig,
+        yaw_rad: f64,
+        (x0, x1, y0, y1): (f64, f64, f64, f64),
+    ) -> Self {
+        let grown = near_box(robot, x0, x1, y0, y1);
+        let near = scene.chairs.iter().filter(|c| chair_near(robot, c, grown));
+        let disc_r2 = match robot.base_collision {
+            BaseCollisionModel::ChairDiscs { radius_m } => Some(radius_m * radius_m),
+            _ => None,
+        };
+        let (chairs, chair_centres) = if disc_r2.is_some() {
+            (Vec::new(), near.map(|c| (c.x_m, c.y_m)).collect())
+        } else {
+            (near.map(|c| c.footprint()).collect(), Vec::new())
+        };
+        Self {
+            room: scene.room,
+            base: robot.footprint.at(0.0, 0.0, yaw_rad),
+            tables: [
+                scene.banquet_table.footprint(),
+                scene.loading_table.footprint(),
+            ],
+            chairs,
+            chair_centres,
+            disc_r2,
+        }
+    }
+
+    /// Whether a base at (`x_m`, `y_m`) with the checker's yaw touches a table, a chair or a
+    /// wall (or leaves the room).
+    pub fn collides(&self, x_m: f64, y_m: f64) -> bool {
+        if let Some(r2) = self.disc_r2 {
+            return !self.room.contains(x_m, y_m)
+                || self.tables.iter().any(|t| t.contains_point(x_m, y_m))
+                || self
+                    .chair_centres
+                    .iter()
+                    .any(|&(cx, cy)| (cx - x_m).powi(2) + (cy - y_m).powi(2) < r2);
+        }
+        let mut footprint = self.base;
+        footprint.center_x_m = x_m;
+        footprint.center_y_m = y_m;
+        !self.room.contains_rect(&footprint)
+            || footprint.overlaps(&self.tables[0])
+            || footprint.overlaps(&self.tables[1])
+            || self.chairs.iter().any(|c| c.overlaps(&footprint))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::{RngExt, SeedableRng};
+
+    /// The checker answers exactly as `base_collides` on the whole scene, for bases anywhere in
+    /// its box, both facing yaws and a few odd ones, both collision models, evaluation scenes
+    /// with 0 to 30 chairs.
+    #[test]
+    fn checker_equals_base_collides() {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+        let footprint = RobotConfig::default();
+        let discs = RobotConfig {
+            base_collision: BaseCollisionModel::ChairDiscs { radius_m: 0.45 },
+            ..RobotConfig::default()
+        };
+        let (mut free, mut blocked) = (0, 0);
+        for seed in 0..6 {
+            for chairs in [0, 15, 20, 25, 30] {
+                let scene = crate::generate::evaluation_scene(seed, chairs, 30);
+                for robot in [&footprint, &discs] {
+                    for yaw in [
+                        std::f64::consts::FRAC_PI_2,
+                        -std::f64::consts::FRAC_PI_2,
+                        0.3,
+                    ] {
+                        let x0 = rng.random_range(-9.0..8.0);
+                        let y0 = rng.random_range(4.0..7.5);
+                        let (x1, y1) = (x0 + 1.5, y0 + 0.5);
+                        let checker =
+                            BaseCollisionChecker::new(&scene, robot, yaw, (x0, x1, y0, y1));
+                        for _ in 0..200 {
+                            let (x, y) = (rng.random_range(x0..=x1), rng.random_range(y0..=y1));
+                            let expected = base_collides(
+                                &scene,
+                                robot,
+                                BasePose {
+                                    x_m: x,
+                                    y_m: y,
+                                    yaw_rad: yaw,
+                                },
+                            );
+                            assert_eq!(checker.collides(x, y), expected, "seed {seed} ({x}, {y})");
+                            if expected { blocked += 1 } else { free += 1 }
+                        }
+                    }
+                }
+            }
+        }
+        // Both answers occur often: the comparison is not vacuous.
+        assert!(
+            free > 1000 && blocked > 1000,
+            "free {free}, blocked {blocked}"
+        );
     }
 }
