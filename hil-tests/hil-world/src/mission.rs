@@ -220,8 +220,13 @@ impl RunningMission {
 
     /// Waits for the world to finish (forwarding its lines to `echo`), then stops the onboard
     /// processes and returns the world's report.
-    pub fn finish(self, timeout: Duration, echo: &mut dyn FnMut(&str)) -> anyhow::Result<WorldReport> {
-        self.finish_measured(timeout, echo).map(|(report, _)| report)
+    pub fn finish(
+        self,
+        timeout: Duration,
+        echo: &mut dyn FnMut(&str),
+    ) -> anyhow::Result<WorldReport> {
+        self.finish_measured(timeout, echo)
+            .map(|(report, _)| report)
     }
 
     /// [`finish`](Self::finish), also returning the peak resident set (KiB) of the world, the
@@ -236,10 +241,10 @@ impl RunningMission {
             while let Ok(line) = self.lines.try_recv() {
                 echo(&line);
             }
-            for (peak, child) in self
-                .peak_rss_kib
-                .iter_mut()
-                .zip([&self.world, &self.planner, &self.executive])
+            for (peak, child) in
+                self.peak_rss_kib
+                    .iter_mut()
+                    .zip([&self.world, &self.planner, &self.executive])
             {
                 if let Some(kib) = peak_rss_kib(child.id()) {
                     *peak = (*peak).max(kib);

@@ -411,6 +411,39 @@ fn a_localisation_jump_holds_the_base_then_the_mission_goes_on() {
     );
 }
 
+/// A model file that is missing or corrupt: the planner refuses to start and says which file
+/// and why; the mission never starts (simulated time stays at zero), so nothing moves.
+#[test]
+fn a_missing_or_corrupt_model_file_stops_the_planner_before_anything_moves() {
+    let dir = std::env::temp_dir().join(mission::unique_run_name("grop-f-model"));
+    std::fs::create_dir_all(&dir).unwrap();
+    let corrupt = dir.join("psi-corrupt.onnx");
+    let mut bytes = std::fs::read(common::model()).unwrap();
+    for b in bytes.iter_mut().skip(64).step_by(97) {
+        *b ^= 0x5a;
+    }
+    std::fs::write(&corrupt, &bytes).unwrap();
+    for (name, model) in [
+        ("missing", dir.join("no-such-model.onnx")),
+        ("corrupt", corrupt),
+    ] {
+        let spec = MissionSpec {
+            model: model.clone(),
+            ..common::spec(&format!("f-model-{name}"), 4)
+        };
+        let bins = mission::binaries(true).expect("binaries build");
+        let running = mission::start(&spec, &bins).expect("the world starts");
+        let err = running
+            .finish(Duration::from_secs(120), &mut |_| {})
+            .expect_err("a mission without a model must not run");
+        let text = format!("{err:#}");
+        println!("{name} model: {text}");
+        assert!(text.contains("grop-planner exited"), "{text}");
+        let file = model.file_name().unwrap().to_string_lossy().into_owned();
+        assert!(text.contains(&file), "the error names the file: {text}");
+    }
+}
+
 #[test]
 fn every_fault_kind_has_a_test_here() {
     let me = include_str!("faults.rs");

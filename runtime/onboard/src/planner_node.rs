@@ -179,6 +179,9 @@ pub struct Answer {
     pub replanned: bool,
 }
 
+/// The oldest camera frame the node plans from (three frame periods of the overhead camera).
+pub const MAX_FRAME_AGE: Duration = Duration::from_secs(3);
+
 /// The node: its ports, the static knowledge (map, robot, occupancy grid), Psi and the planner.
 pub struct PlannerNode {
     frames: TopicSubscriber<CameraFrameMsg>,
@@ -187,6 +190,8 @@ pub struct PlannerNode {
     heatmaps: TopicPublisher<HeatmapsMsg>,
     health: TopicPublisher<HeartbeatMsg>,
     newest_frame: Option<Received<CameraFrameMsg>>,
+    /// The frame id last reported too old to plan from.
+    stale_frame_warned: Option<u64>,
     pending: Option<ReplanRequestMsg>,
     scene: Scene,
     robot: RobotConfig,
@@ -293,6 +298,7 @@ impl PlannerNode {
             overruns: 0,
             failures: 0,
             last_error: None,
+            stale_frame_warned: None,
             crops: vec![[0; CROP_CELLS]; 2 * n],
             heat_buffers: vec![Heatmap::zeros(); 2 * n],
             _ipc: ipc,
@@ -331,6 +337,32 @@ impl PlannerNode {
     /// Requests that could not be answered so far, and the last reason.
     pub fn failures(&self) -> (u64, Option<&str>) {
         (self.failures, self.last_error.as_deref())
+    }
+
+    /// A frame to plan from: there is one, and it is no older than [`MAX_FRAME_AGE`] (a frozen
+    /// camera keeps delivering its last picture; the world may have changed since). Reports a
+    /// too-old frame once.
+    fn fresh_frame(&mut self, now: Duration) -> bool {
+        let Some(frame) = self.newest_frame.as_ref() else {
+            return false;
+        };
+        let age = now.saturating_sub(Duration::from_nanos(frame.header.stamp_ns));
+        if age <= MAX_FRAME_AGE {
+            return true;
+        }
+        if self.pending.is_some() && self.stale_frame_warned != Some(frame.header.frame_id) {
+            self.stale_frame_warned = Some(frame.header.frame_id);
+            self.failures += 1;
+            let text = format!(
+                "camera frame {} is {:.1} s old (at most {:.1} s): not planning from it; waiting for a fresh one",
+                frame.header.frame_id,
+                age.as_secs_f64(),
+                MAX_FRAME_AGE.as_secs_f64()
+            );
+            log::warn!("{text}");
+            self.last_error = Some(text);
+        }
+        false
     }
 
     /// Runs the loop until `stop` is set or the clock is lost: every [`CYCLE`] of clock time one
@@ -392,8 +424,9 @@ impl PlannerNode {
             }
         }
         let mut answer = None;
+        let fresh = self.fresh_frame(now);
         let can_answer = self.pending.is_some_and(|r| {
-            self.newest_frame.is_some()
+            fresh
                 || (r.reason() == Ok(ReplanReason::UnloadFailed)
                     && matches!(self.retry, RetryPolicy::None | RetryPolicy::GropPlus)
                     && self.current.is_some())

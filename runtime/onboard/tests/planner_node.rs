@@ -58,10 +58,19 @@ fn peers(namespace: &str) -> Peers {
 }
 
 fn publish_frame(camera: &TopicPublisher<CameraFrameMsg>, scene: &Scene, frame_id: u64) {
+    publish_frame_at(camera, scene, frame_id, Duration::from_nanos(1));
+}
+
+fn publish_frame_at(
+    camera: &TopicPublisher<CameraFrameMsg>,
+    scene: &Scene,
+    frame_id: u64,
+    stamp: Duration,
+) {
     let cam = OverheadCamera::fitting_room(scene);
     let mut header = CameraFrameHeader {
         frame_id,
-        stamp_ns: 1,
+        stamp_ns: u64::try_from(stamp.as_nanos()).unwrap(),
         width_px: cam.width_px,
         height_px: cam.height_px,
         pixel_format: 0,
@@ -589,6 +598,54 @@ fn requests_wait_for_a_frame_and_bad_frames_are_survived() {
     let answer = step_until_answer(&mut node, &mut now);
     assert_eq!(answer.request_id, 2);
     assert_eq!(answer.step_count, 2 + 2 * scene.targets.len());
+}
+
+/// A frozen camera (its last frame delivered again and again, stamped when it was taken): no
+/// plan from a frame older than MAX_FRAME_AGE; the request waits, and a fresh frame answers it.
+#[test]
+fn a_frozen_camera_frame_is_not_planned_from() {
+    let scene = world::generate::evaluation_scene(10, 20, 2);
+    let ns = unique_namespace("frozen");
+    let mut node = PlannerNode::new(
+        &ns,
+        scene.clone(),
+        RobotConfig::default(),
+        Box::new(psi()),
+        PlannerSettings::default(),
+        0,
+    )
+    .unwrap();
+    let p = peers(&ns);
+    // Frame 1, stamped at 0; the camera then freezes.
+    publish_frame(&p.camera, &scene, 1);
+    let mut now = grop_onboard::planner_node::MAX_FRAME_AGE + Duration::from_secs(7);
+    p.requests
+        .publish(&request(
+            1,
+            ReplanReason::MissionStart,
+            start_pose(&scene),
+            0,
+        ))
+        .unwrap();
+    for _ in 0..5 {
+        now += Duration::from_millis(10);
+        assert_eq!(
+            node.step(now).unwrap(),
+            None,
+            "planned from a 10 s old frame"
+        );
+    }
+    let (failures, last) = node.failures();
+    assert_eq!(failures, 1, "reported once");
+    assert!(last.unwrap().contains("s old"), "{last:?}");
+    // The same frozen frame again: still nothing.
+    publish_frame(&p.camera, &scene, 1);
+    now += Duration::from_millis(10);
+    assert_eq!(node.step(now).unwrap(), None);
+    // A fresh frame: the waiting request is answered.
+    publish_frame_at(&p.camera, &scene, 2, now);
+    let answer = step_until_answer(&mut node, &mut now);
+    assert_eq!(answer.request_id, 1);
 }
 
 /// Objects of the unloads in `steps`, as a bit set.

@@ -140,26 +140,7 @@ impl TripPlan {
     pub fn actions(&self) -> Vec<Action> {
         let mut actions = Vec::new();
         for trip in &self.trips {
-            actions.push(Action::Navigate {
-                to: Location::LoadingStation,
-            });
-            actions.extend(
-                trip.load_order
-                    .iter()
-                    .map(|&object| Action::Load { object }),
-            );
-            for u in &trip.unloads {
-                actions.push(Action::Navigate {
-                    to: Location::Unload {
-                        object: u.object,
-                        side: u.side,
-                    },
-                });
-                actions.push(Action::Unload {
-                    object: u.object,
-                    side: u.side,
-                });
-            }
+            crate::task::push_trip_actions(&mut actions, &trip.load_order, &trip.unloads);
         }
         actions
     }

@@ -268,26 +268,7 @@ impl TaskPlan {
     /// The plan as the action sequence `<a^n_0, a^m_0, a^n_1, ...>` of the paper.
     pub fn actions(&self) -> Vec<Action> {
         let mut actions = Vec::with_capacity(1 + self.load_order.len() + 2 * self.unloads.len());
-        actions.push(Action::Navigate {
-            to: Location::LoadingStation,
-        });
-        actions.extend(
-            self.load_order
-                .iter()
-                .map(|&object| Action::Load { object }),
-        );
-        for u in &self.unloads {
-            actions.push(Action::Navigate {
-                to: Location::Unload {
-                    object: u.object,
-                    side: u.side,
-                },
-            });
-            actions.push(Action::Unload {
-                object: u.object,
-                side: u.side,
-            });
-        }
+        push_trip_actions(&mut actions, &self.load_order, &self.unloads);
         actions
     }
 
@@ -872,6 +853,31 @@ fn product_plan_by_branch_and_bound(
         }
     }
     best_steps
+}
+
+/// One trip's actions: to the station, load `load_order`, then navigate to and unload each of
+/// `unloads` (a single-trip plan is one trip; [`crate::multi_trip`] plans several).
+pub(crate) fn push_trip_actions(
+    actions: &mut Vec<Action>,
+    load_order: &[ObjectId],
+    unloads: &[UnloadStep],
+) {
+    actions.push(Action::Navigate {
+        to: Location::LoadingStation,
+    });
+    actions.extend(load_order.iter().map(|&object| Action::Load { object }));
+    for u in unloads {
+        actions.push(Action::Navigate {
+            to: Location::Unload {
+                object: u.object,
+                side: u.side,
+            },
+        });
+        actions.push(Action::Unload {
+            object: u.object,
+            side: u.side,
+        });
+    }
 }
 
 #[cfg(test)]
