@@ -22,7 +22,7 @@ use planner::methods::{
 };
 use planner::problem::{TaskProblem, side_of_location};
 use planner::task::{PlanningTable, optimise};
-use world::camera::{FrameLayout, OverheadCamera, cut_view, render_frame};
+use world::camera::{FrameLayout, OverheadCamera, cut_views, render_frame};
 use world::nav::OccupancyGrid;
 
 /// Arguments of `grop bench`.
@@ -43,6 +43,10 @@ pub struct Args {
     /// Seed of the scenes.
     #[arg(long, default_value_t = 7)]
     pub seed: u64,
+    /// Run only the `grop-3` decision (camera frame, GROP) this many times and print its p50 and
+    /// p99, writing nothing: a loop to put under a profiler (`perf record`).
+    #[arg(long, value_name = "N")]
+    pub decision_only: Option<usize>,
 }
 
 /// Latency samples of one case.
@@ -124,9 +128,11 @@ fn camera_problem(
     let m = 2 * targets.len();
     anyhow::ensure!(crops.len() >= m && heatmaps.len() >= m, "buffers too small");
     let t0 = Instant::now();
-    for (i, crop) in crops[..m].iter_mut().enumerate() {
-        cut_view(pixels, layout, targets[i / 2][0], side_of_location(i), crop)?;
+    let mut views = [(0.0, world::Side::Near); 2 * planner::task::MAX_OBJECTS];
+    for (i, view) in views[..m].iter_mut().enumerate() {
+        *view = (targets[i / 2][0], side_of_location(i));
     }
+    cut_views(pixels, layout, &views[..m], &mut crops[..m])?;
     let t1 = Instant::now();
     let queries: Vec<FeasibilityQuery<'_>> = crops[..m]
         .iter()
@@ -165,11 +171,22 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         "map",
         "per map, not per decision: occupancy grid + corner visibility graph (all-pairs)",
     );
+    let mut sight = Samples::new(
+        "map/sight",
+        "per map, not per decision: which corners each cell of the goal bands, the start and the station sees; the station connected",
+    );
     let mut grids: Vec<OccupancyGrid> = Vec::new();
+    let (mut sight_cells, mut sight_bytes) = (0, 0);
     for k in 0..3 * 10 {
         let t = Instant::now();
-        let grid = OccupancyGrid::from_scene(&scenes[k % scenes.len()], &robot);
-        map.ms.push(t.elapsed().as_secs_f64() * 1e3);
+        let mut grid = OccupancyGrid::from_scene(&scenes[k % scenes.len()], &robot);
+        let t1 = Instant::now();
+        let stats =
+            planner::costs::prepare_grid_for_decisions(&mut grid, &scenes[k % scenes.len()]);
+        sight_cells = sight_cells.max(stats.cells);
+        sight_bytes = sight_bytes.max(stats.bytes);
+        map.ms.push((t1 - t).as_secs_f64() * 1e3);
+        sight.ms.push(t1.elapsed().as_secs_f64() * 1e3);
         if k < scenes.len() {
             grids.push(grid);
         }
@@ -189,6 +206,37 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             Ok((FrameLayout::rgb8(camera), pixels))
         })
         .collect::<anyhow::Result<_>>()?;
+
+    if let Some(n) = args.decision_only {
+        let mut samples = Samples::new("grop-3", "");
+        let mut crops = vec![[0u8; 2048]; 6];
+        let mut heatmaps = vec![world::Heatmap::zeros(); 6];
+        for k in 0..n {
+            let s = k % scenes.len();
+            let targets = task_targets(&scenes[s], (k / scenes.len() * 3) % 27, 3);
+            let t0 = Instant::now();
+            let problem = camera_problem(
+                &scenes[s],
+                &robot,
+                &targets,
+                (&frames[s].0, &frames[s].1),
+                &mut fcn,
+                &mut crops,
+                &mut heatmaps,
+                &mut [],
+                false,
+            )?;
+            let mut travel = GridTravelTime::new(&grids[s], robot.speed_mps);
+            Planner::new(MethodKind::Grop, cfg).plan(&problem, &mut travel, k as u64)?;
+            samples.ms.push(t0.elapsed().as_secs_f64() * 1e3);
+        }
+        println!(
+            "grop-3 decision: p50 {:.3} ms, p99 {:.3} ms (n = {n})",
+            samples.pct(0.5),
+            samples.pct(0.99)
+        );
+        return Ok(());
+    }
 
     let mut full3 = Samples::new(
         "grop-3",
@@ -408,7 +456,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let lazy10_mean_calls = lazy10_calls as f64 / lazy10.ms.len().max(1) as f64;
     let cases = [
         full3, cut3, psi3, free3, plan3, nav3, sel3, plus3, plus3_plan, rendered3, lazy3, opt10,
-        opt10p, full10, lazy10, map,
+        opt10p, full10, lazy10, map, sight,
     ];
     let mut md = String::from(
         "# GROP decision latency\n\n<!-- written by `grop bench` -->\n\nOne core, release build, evaluation scenes \

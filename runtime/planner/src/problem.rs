@@ -113,6 +113,36 @@ pub fn candidate_index(row: usize, col: usize) -> Option<usize> {
     }
 }
 
+/// Where a decision on `scene` can put navigation endpoints, as world boxes `(x_min, x_max,
+/// y_min, y_max)`: the goal bands (the centres of every candidate cell on either side, for
+/// targets anywhere along the banquet table), the start and the loading station. The boxes for
+/// [`world::nav::OccupancyGrid::precompute_endpoint_sight`]; a goal outside them (a target beyond
+/// the table's ends) is still answered, by line-of-sight checks.
+pub fn endpoint_regions(scene: &Scene) -> Vec<(f64, f64, f64, f64)> {
+    let (x0, x1, _, _) = scene.banquet_table.footprint().bounds();
+    let mut boxes = Vec::with_capacity(4);
+    for side in [Side::Near, Side::Far] {
+        let (mut bx0, mut bx1, mut by0, mut by1) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
+        for x in [x0, x1] {
+            for row in [*CANDIDATE_ROWS.start(), *CANDIDATE_ROWS.end()] {
+                for col in [*CANDIDATE_COLS.start(), *CANDIDATE_COLS.end()] {
+                    let (cx, cy) = cell_center_world(x, side, row, col);
+                    (bx0, bx1) = (bx0.min(cx), bx1.max(cx));
+                    (by0, by1) = (by0.min(cy), by1.max(cy));
+                }
+            }
+        }
+        boxes.push((bx0, bx1, by0, by1));
+    }
+    for (x, y) in [
+        (scene.robot_start.x_m, scene.robot_start.y_m),
+        (scene.loading_station.x_m, scene.loading_station.y_m),
+    ] {
+        boxes.push((x, x, y, y));
+    }
+    boxes
+}
+
 /// Everything a planner needs for one task.
 #[derive(Debug, Clone)]
 pub struct TaskProblem {

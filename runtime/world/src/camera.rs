@@ -207,6 +207,14 @@ impl FrameLayout {
 #[derive(Clone, Copy, Debug, PartialEq, thiserror::Error)]
 #[non_exhaustive]
 pub enum CameraError {
+    /// Fewer crop buffers than views to cut.
+    #[error("{views} views to cut but only {crops} crop buffers")]
+    TooFewCrops {
+        /// Views asked for.
+        views: usize,
+        /// Crop buffers given.
+        crops: usize,
+    },
     /// A header field makes no sense.
     #[error("camera frame header: {field} {reason}")]
     BadHeader {
@@ -400,7 +408,7 @@ pub fn render_frame(
 /// the near crop, or the far crop rotated 180 degrees, exactly the cells of
 /// [`crate::view::cell_center_world`]. Each cell is the area-weighted mean gray level (see the
 /// module docs for the conversion) of the frame pixels under its 6.25 cm square, rounded once.
-/// Allocates nothing.
+/// Allocates nothing. For several views of one frame, [`cut_views`] is faster.
 pub fn cut_view(
     pixels: &[u8],
     layout: &FrameLayout,
@@ -408,7 +416,87 @@ pub fn cut_view(
     side: Side,
     crop: &mut [u8; CROP_ROWS * CROP_COLS],
 ) -> Result<(), CameraError> {
+    cut_views(
+        pixels,
+        layout,
+        &[(target_x_m, side)],
+        std::slice::from_mut(crop),
+    )
+}
+
+/// [`cut_view`] for every `(target_x_m, side)` of `views` into the crop of the same index: the
+/// same crops, byte for byte. Views of one side share their frame rows (their crop rows lie at
+/// the same y), so where they overlap along x each frame row under them is converted to gray and
+/// weighted once for all of them. Checks every view before cutting any; the first bad one is the
+/// error (it names its target and side). Allocates nothing.
+pub fn cut_views(
+    pixels: &[u8],
+    layout: &FrameLayout,
+    views: &[(f64, Side)],
+    crops: &mut [[u8; CROP_ROWS * CROP_COLS]],
+) -> Result<(), CameraError> {
     layout.check(pixels.len())?;
+    if crops.len() < views.len() {
+        return Err(CameraError::TooFewCrops {
+            views: views.len(),
+            crops: crops.len(),
+        });
+    }
+    for &(target_x_m, side) in views {
+        check_view(layout, target_x_m, side)?;
+    }
+    for side in [Side::Near, Side::Far] {
+        // This side's views by their left pixel, merged into groups that overlap.
+        let mut order = [(0usize, 0usize, 0usize); MAX_CUT_VIEWS];
+        let mut count = 0;
+        for (i, &(x, s)) in views.iter().enumerate() {
+            if s != side {
+                continue;
+            }
+            let (p0, p1) = view_pixel_columns(layout, x, side);
+            if count == MAX_CUT_VIEWS {
+                // More views than the sorting buffer: cut this one alone.
+                let (rows, cols) = view_spans(layout, x, side);
+                cut_group::<SEPARABLE_MAX_PX>(pixels, layout, &rows, &[(i, cols)], crops);
+                continue;
+            }
+            order[count] = (p0, p1, i);
+            count += 1;
+        }
+        let order = &mut order[..count];
+        order.sort_unstable();
+        let mut k = 0;
+        while k < order.len() {
+            let (u0, mut u1, first) = order[k];
+            let (rows, cols) = view_spans(layout, views[first].0, side);
+            let mut members = [(0usize, [Span::EMPTY; CROP_COLS]); MAX_GROUP];
+            members[0] = (first, cols);
+            let mut n = 1;
+            k += 1;
+            while k < order.len() && n < MAX_GROUP {
+                let (p0, p1, i) = order[k];
+                if p0 >= u1 || p1.max(u1) - u0 > SEPARABLE_MAX_PX {
+                    break;
+                }
+                u1 = u1.max(p1);
+                members[n] = (i, view_spans(layout, views[i].0, side).1);
+                n += 1;
+                k += 1;
+            }
+            cut_group::<SEPARABLE_MAX_PX>(pixels, layout, &rows, &members[..n], crops);
+        }
+    }
+    Ok(())
+}
+
+/// Views sorted and grouped per call of [`cut_views`] and side; further views are cut alone.
+const MAX_CUT_VIEWS: usize = 64;
+/// Most views cut together in one pass over their frame rows.
+const MAX_GROUP: usize = 4;
+
+/// Whether the view of (`target_x_m`, `side`) can be cut from frames of `layout`: a finite
+/// target whose view lies inside the frame. [`cut_views`] checks this for every view first.
+pub fn check_view(layout: &FrameLayout, target_x_m: f64, side: Side) -> Result<(), CameraError> {
     if !target_x_m.is_finite() {
         return Err(CameraError::BadTarget(target_x_m));
     }
@@ -438,11 +526,31 @@ pub fn cut_view(
             frame_y_max_m: cam.top_y_m,
         });
     }
-    let bpp = layout.format.bytes_per_px();
+    Ok(())
+}
+
+/// The frame columns `[p0, p1)` a view's cells touch.
+fn view_pixel_columns(layout: &FrameLayout, target_x_m: f64, side: Side) -> (usize, usize) {
+    let cols = view_spans(layout, target_x_m, side).1;
+    let p0 = cols.iter().map(|s| s.first).min().unwrap_or(0);
+    let p1 = cols.iter().map(|s| s.last).max().unwrap_or(0).max(p0);
+    (p0, p1)
+}
+
+/// The pixel spans of a view's crop rows and columns in the frame. A cell's horizontal pixel
+/// span depends on its column only, its vertical span on its row only (the view is
+/// axis-aligned): both are computed once per column and per row, with the same operations as
+/// per cell ([`cut_view_reference`]).
+fn view_spans(
+    layout: &FrameLayout,
+    target_x_m: f64,
+    side: Side,
+) -> ([Span; CROP_ROWS], [Span; CROP_COLS]) {
+    let cam = &layout.camera;
+    let m = cam.metres_per_px;
+    let width_px = f64::from(cam.width_px);
+    let height_px = f64::from(cam.height_px);
     let cell_px = CELL_SIZE_M / m;
-    // A cell's horizontal pixel span depends on its column only, its vertical span on its row
-    // only (the view is axis-aligned): both are computed once per column and per row, with the
-    // same operations as per cell ([`cut_view_reference`]), so every crop value is the same.
     let mut cols = [Span::EMPTY; CROP_COLS];
     for (c, span) in cols.iter_mut().enumerate() {
         let (xa, _) = crop_point_world(target_x_m, side, 0.0, c as f64);
@@ -469,6 +577,166 @@ pub fn cut_view(
             last: (v1.ceil() as usize).min(cam.height_px as usize),
         };
     }
+    (rows, cols)
+}
+
+/// Most frame pixels the views cut together may span along a row ([`cut_group`]'s buffers live
+/// on the stack): a lone view may have 16 per cell, so cameras down to about 4 mm/px. Finer
+/// frames take [`cut_per_cell`].
+const SEPARABLE_MAX_PX: usize = 1024;
+
+/// Rounds a non-negative value half away from zero, like `f64::round`, clamped to a byte,
+/// without the libm call (exact: the integer part and the fraction are both exact in f64).
+fn round_non_negative(x: f64) -> u8 {
+    let x = x.min(255.0);
+    let t = x as u32;
+    let r = if x - f64::from(t) >= 0.5 { t + 1 } else { t };
+    r.min(255) as u8
+}
+
+/// The crops of views of one side (`members`: crop index and column spans; `rows` their common
+/// row spans) by separating the area weights (each cell's weight is its column weight times its
+/// row weight): every frame row under the views is converted to gray once for all of them (`77
+/// R + 150 G + 29 B`, exact; the division by 256 comes last and is exact too), each crop row
+/// sums its few frame rows with their row weights, and each cell then sums its few columns with
+/// their column weights (computed once per view). The same sums as [`cut_per_cell`] in another
+/// order (equal up to the last bits, so the same rounded crop; tested against the per-cell
+/// reference). Members whose columns do not fit `MAX_PX` together are cut one by one, and one
+/// that does not fit alone by [`cut_per_cell`].
+fn cut_group<const MAX_PX: usize>(
+    pixels: &[u8],
+    layout: &FrameLayout,
+    rows: &[Span; CROP_ROWS],
+    members: &[(usize, [Span; CROP_COLS])],
+    crops: &mut [[u8; CROP_ROWS * CROP_COLS]],
+) {
+    let bpp = layout.format.bytes_per_px();
+    let p0 = members
+        .iter()
+        .flat_map(|(_, cols)| cols.iter().map(|s| s.first))
+        .min()
+        .unwrap_or(0);
+    let p1 = members
+        .iter()
+        .flat_map(|(_, cols)| cols.iter().map(|s| s.last))
+        .max()
+        .unwrap_or(0)
+        .max(p0);
+    let width = p1 - p0;
+    if width > MAX_PX.min(SEPARABLE_MAX_PX) || members.len() > MAX_GROUP {
+        if members.len() == 1 {
+            let (i, cols) = &members[0];
+            cut_per_cell(pixels, layout, rows, cols, &mut crops[*i]);
+        } else {
+            for member in members {
+                cut_group::<MAX_PX>(pixels, layout, rows, std::slice::from_ref(member), crops);
+            }
+        }
+        return;
+    }
+    // Column weights, once per view: cell c of member g sums `weights[g][at..at + n]` against
+    // the pixels from `first`. Each pixel is in at most two cells of a view.
+    let mut weights = [[0.0f64; 2 * CROP_COLS + SEPARABLE_MAX_PX]; MAX_GROUP];
+    let mut cells = [[(0usize, 0usize, 0usize, 0.0f64); CROP_COLS]; MAX_GROUP];
+    for ((_, cols), (w, cells)) in members.iter().zip(weights.iter_mut().zip(cells.iter_mut())) {
+        let mut used = 0;
+        for (cs, cell) in cols.iter().zip(cells.iter_mut()) {
+            let (mut n, mut first, mut area_x) = (0, p0, 0.0);
+            for col in cs.first..cs.last {
+                let wx = cs.hi.min(col as f64 + 1.0) - cs.lo.max(col as f64);
+                if wx <= 0.0 {
+                    continue;
+                }
+                if n == 0 {
+                    first = col;
+                }
+                // A span's columns after its first positive weight are contiguous.
+                w[used + col - first] = wx;
+                n = col - first + 1;
+                area_x += wx;
+            }
+            *cell = (used, first - p0, n, area_x);
+            used += n;
+        }
+    }
+    let scale = match layout.format {
+        PixelFormat::Mono8 => 1.0,
+        PixelFormat::Rgb8 => 1.0 / 256.0,
+    };
+    let mut gray_row = [0.0f64; MAX_PX];
+    let mut gray_of = usize::MAX;
+    let mut acc = [0.0f64; MAX_PX];
+    // Crop rows in frame-row order, so a frame row two crop rows share is converted once.
+    let ascending = rows[0].first <= rows[CROP_ROWS - 1].first;
+    for k in 0..CROP_ROWS {
+        let r = if ascending { k } else { CROP_ROWS - 1 - k };
+        let rs = &rows[r];
+        let acc = &mut acc[..width];
+        acc.fill(0.0);
+        let mut area_y = 0.0;
+        for row in rs.first..rs.last {
+            let wy = rs.hi.min(row as f64 + 1.0) - rs.lo.max(row as f64);
+            if wy <= 0.0 {
+                continue;
+            }
+            area_y += wy;
+            if gray_of != row {
+                let at = row * layout.row_stride_bytes + p0 * bpp;
+                gray_line(
+                    &pixels[at..at + width * bpp],
+                    layout.format,
+                    &mut gray_row[..width],
+                );
+                gray_of = row;
+            }
+            for (a, &g) in acc.iter_mut().zip(&gray_row[..width]) {
+                *a += wy * g;
+            }
+        }
+        for ((i, _), (w, cells)) in members.iter().zip(weights.iter().zip(cells.iter())) {
+            let out = &mut crops[*i][r * CROP_COLS..(r + 1) * CROP_COLS];
+            for (o, &(at, first, n, area_x)) in out.iter_mut().zip(cells.iter()) {
+                let sum: f64 = w[at..at + n]
+                    .iter()
+                    .zip(&acc[first..first + n])
+                    .map(|(wx, a)| wx * a)
+                    .sum();
+                let area = area_x * area_y;
+                let value = if area > 0.0 { sum * scale / area } else { 0.0 };
+                *o = round_non_negative(value.max(0.0));
+            }
+        }
+    }
+}
+
+/// One frame row's gray levels, times 256 for RGB8 (`77 R + 150 G + 29 B`, exact).
+fn gray_line(line: &[u8], format: PixelFormat, out: &mut [f64]) {
+    match format {
+        PixelFormat::Mono8 => {
+            for (g, &v) in out.iter_mut().zip(line) {
+                *g = f64::from(v);
+            }
+        }
+        PixelFormat::Rgb8 => {
+            for (g, px) in out.iter_mut().zip(line.chunks_exact(3)) {
+                *g = f64::from(
+                    77 * u32::from(px[0]) + 150 * u32::from(px[1]) + 29 * u32::from(px[2]),
+                );
+            }
+        }
+    }
+}
+
+/// The crop cells one by one, each summing the weighted gray of every pixel under it: the
+/// fallback of [`cut_group`] for very fine frames.
+fn cut_per_cell(
+    pixels: &[u8],
+    layout: &FrameLayout,
+    rows: &[Span; CROP_ROWS],
+    cols: &[Span; CROP_COLS],
+    crop: &mut [u8; CROP_ROWS * CROP_COLS],
+) {
+    let bpp = layout.format.bytes_per_px();
     for (r, rs) in rows.iter().enumerate() {
         for (c, cs) in cols.iter().enumerate() {
             let mut sum = 0.0;
@@ -497,7 +765,6 @@ pub fn cut_view(
             crop[r * CROP_COLS + c] = gray.round().clamp(0.0, 255.0) as u8;
         }
     }
-    Ok(())
 }
 
 /// A cell's extent along one frame axis in fractional pixels, and the pixels it touches.
@@ -603,9 +870,101 @@ mod tests {
         assert!(cam.top_y_m - 480.0 * cam.metres_per_px <= scene.room.y_min_m);
     }
 
-    /// The per-row/per-column `cut_view` gives the same crop, byte for byte, as the per-cell
-    /// reference: noise frames (every weight shows), both sides, many targets, three cameras
-    /// (integer and non-integer pixels per cell), RGB8 and padded Mono8.
+    /// Views cut together give the crops each gives alone, byte for byte: overlapping and apart,
+    /// more than a group, both sides mixed, three cameras, RGB8 and Mono8. A bad view fails the
+    /// call before any crop is written, and names itself.
+    #[test]
+    fn cut_views_equals_cut_view_one_by_one() {
+        use rand::{RngExt, SeedableRng};
+        let scene = Scene::empty_paper_room();
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(21);
+        for camera in [
+            OverheadCamera::fitting_room(&scene),
+            OverheadCamera::fitting_room_with(&scene, 500, 371),
+            OverheadCamera::fitting_room_with(&scene, 1283, 977),
+        ] {
+            for format in [PixelFormat::Rgb8, PixelFormat::Mono8] {
+                let layout = FrameLayout {
+                    camera,
+                    format,
+                    row_stride_bytes: camera.width_px as usize * format.bytes_per_px() + 3,
+                };
+                let pixels: Vec<u8> = (0..layout.row_stride_bytes * camera.height_px as usize)
+                    .map(|_| rng.random())
+                    .collect();
+                for count in [1, 2, 3, 6, 11] {
+                    let views: Vec<(f64, Side)> = (0..count)
+                        .map(|i| {
+                            let side = if rng.random::<bool>() {
+                                Side::Near
+                            } else {
+                                Side::Far
+                            };
+                            // Some close together (one group), some far apart.
+                            let x = if i % 3 == 2 {
+                                rng.random_range(-4.7..4.7)
+                            } else {
+                                rng.random_range(-1.0..1.0)
+                            };
+                            (x, side)
+                        })
+                        .collect();
+                    let mut together = vec![[0u8; CROP_ROWS * CROP_COLS]; count];
+                    cut_views(&pixels, &layout, &views, &mut together).unwrap();
+                    for (k, &(x, side)) in views.iter().enumerate() {
+                        let mut alone = [0u8; CROP_ROWS * CROP_COLS];
+                        cut_view(&pixels, &layout, x, side, &mut alone).unwrap();
+                        assert_eq!(
+                            together[k], alone,
+                            "{camera:?} {format:?} view {k} of {views:?}"
+                        );
+                    }
+                }
+                let mut crops = vec![[7u8; CROP_ROWS * CROP_COLS]; 3];
+                let bad = [(0.0, Side::Near), (40.0, Side::Far), (0.5, Side::Far)];
+                match cut_views(&pixels, &layout, &bad, &mut crops) {
+                    Err(CameraError::ViewOutsideFrame {
+                        target_x_m, side, ..
+                    }) => {
+                        assert_eq!((target_x_m, side), (40.0, Side::Far));
+                    }
+                    other => panic!("{other:?}"),
+                }
+                assert!(
+                    crops.iter().all(|c| c.iter().all(|&v| v == 7)),
+                    "nothing written"
+                );
+                assert_eq!(
+                    cut_views(&pixels, &layout, &bad, &mut crops[..2]),
+                    Err(CameraError::TooFewCrops { views: 3, crops: 2 })
+                );
+            }
+        }
+    }
+
+    /// The libm-free rounding is `f64::round` (half away from zero) clamped to a byte, at the
+    /// halves, just below them and at random values.
+    #[test]
+    fn rounding_matches_f64_round() {
+        use rand::{RngExt, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+        let halves = (0..300).flat_map(|k| {
+            let h = k as f64 + 0.5;
+            [h, h.next_down(), h.next_up(), k as f64]
+        });
+        let random = (0..10_000).map(|_| rng.random_range(0.0..400.0));
+        for x in halves.chain(random).chain([0.0, 0.49999999999999994, 1e12]) {
+            assert_eq!(
+                round_non_negative(x),
+                x.round().clamp(0.0, 255.0) as u8,
+                "{x}"
+            );
+        }
+    }
+
+    /// The separable `cut_view` and its per-cell fallback give the same crop, byte for byte, as
+    /// the per-cell reference: noise frames (every weight shows), both sides, many targets, three
+    /// cameras (integer and non-integer pixels per cell), RGB8 and padded Mono8.
     #[test]
     fn cut_view_equals_the_per_cell_reference() {
         use rand::{RngExt, SeedableRng};
@@ -641,6 +1000,21 @@ mod tests {
                         cut_view(&pixels, &layout, x, side, &mut fast).unwrap();
                         cut_view_reference(&pixels, &layout, x, side, &mut reference);
                         assert_eq!(fast, reference, "{camera:?} {format:?} x {x} {side}");
+                        // The fallback for frames too fine for the separable cut, forced.
+                        let (rows, cols) = view_spans(&layout, x, side);
+                        let mut per_cell = [[0u8; CROP_ROWS * CROP_COLS]];
+                        cut_per_cell(&pixels, &layout, &rows, &cols, &mut per_cell[0]);
+                        assert_eq!(
+                            per_cell[0], reference,
+                            "per cell: {camera:?} {format:?} x {x}"
+                        );
+                        // A group too wide for the buffers goes to the per-cell path.
+                        per_cell[0] = [0; CROP_ROWS * CROP_COLS];
+                        cut_group::<64>(&pixels, &layout, &rows, &[(0, cols)], &mut per_cell);
+                        assert_eq!(
+                            per_cell[0], reference,
+                            "fallback: {camera:?} {format:?} x {x}"
+                        );
                         checked += 1;
                     }
                 }

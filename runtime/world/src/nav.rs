@@ -19,8 +19,8 @@ use crate::robot::RobotConfig;
 use crate::scene::Scene;
 
 mod visibility;
-use visibility::CornerGraph;
-pub use visibility::{MAX_GRAPH_CORNERS, NavEndpoint};
+use visibility::{CornerGraph, SightTable};
+pub use visibility::{MAX_GRAPH_CORNERS, NavEndpoint, SightStats};
 
 /// Grid resolution (m): the authors' 0.1 m navigation cells.
 pub const NAV_CELL_M: f64 = 0.1;
@@ -67,6 +67,11 @@ pub struct OccupancyGrid {
     component: Vec<u32>,
     /// Corner visibility graph with all-pairs distances: the fast exact path queries.
     graph: CornerGraph,
+    /// Which corners each cell sees, when precomputed
+    /// ([`OccupancyGrid::precompute_endpoint_sight`]).
+    sight: Option<SightTable>,
+    /// Endpoints connected once per map ([`OccupancyGrid::keep_endpoint`]).
+    kept_endpoints: Vec<NavEndpoint>,
 }
 
 impl OccupancyGrid {
@@ -83,6 +88,8 @@ impl OccupancyGrid {
             free: vec![true; cols * rows],
             component: Vec::new(),
             graph: CornerGraph::default(),
+            sight: None,
+            kept_endpoints: Vec::new(),
         };
         // blocked[i] has bit h set when heading h collides at cell i.
         let mut blocked = vec![0u8; cols * rows];
