@@ -694,13 +694,18 @@ fn cut_group<const MAX_PX: usize>(
             }
         }
         for ((i, _), (w, cells)) in members.iter().zip(weights.iter().zip(cells.iter())) {
-            let out = &mut crops[*i][r * CROP_COLS..(r + 1) * CROP_COLS];
-            for (o, &(at, first, n, area_x)) in out.iter_mut().zip(cells.iter()) {
-                let sum: f64 = w[at..at + n]
+            // Sums first, then the divisions and roundings in a loop of their own (it
+            // vectorises).
+            let mut sums = [0.0f64; CROP_COLS];
+            for (sum, &(at, first, n, _)) in sums.iter_mut().zip(cells.iter()) {
+                *sum = w[at..at + n]
                     .iter()
                     .zip(&acc[first..first + n])
                     .map(|(wx, a)| wx * a)
                     .sum();
+            }
+            let out = &mut crops[*i][r * CROP_COLS..(r + 1) * CROP_COLS];
+            for ((o, &sum), &(_, _, _, area_x)) in out.iter_mut().zip(&sums).zip(cells.iter()) {
                 let area = area_x * area_y;
                 let value = if area > 0.0 { sum * scale / area } else { 0.0 };
                 *o = round_non_negative(value.max(0.0));
