@@ -402,9 +402,20 @@ fn scene_file() -> Vec<Vec<u8>> {
     seeds
 }
 
+/// A temporary file of its own for each call: the tests build the seeds on several threads at
+/// once, and a file shared between them was written, read and removed under each other.
+fn scratch_path(what: &str, extension: &str) -> std::path::PathBuf {
+    static CALLS: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+    let call = CALLS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    std::env::temp_dir().join(format!(
+        "grop-seed-{what}-{}-{call}.{extension}",
+        std::process::id()
+    ))
+}
+
 /// The scene as the JSON the loader reads (written by the product's own `save`).
 fn serde_json_of_scene(scene: &world::Scene) -> Result<Vec<u8>, String> {
-    let path = std::env::temp_dir().join(format!("grop-seed-scene-{}.json", std::process::id()));
+    let path = scratch_path("scene", "json");
     scene.save(&path).map_err(|e| e.to_string())?;
     let bytes = std::fs::read(&path).map_err(|e| e.to_string())?;
     let _ = std::fs::remove_file(&path);
@@ -414,7 +425,7 @@ fn serde_json_of_scene(scene: &world::Scene) -> Result<Vec<u8>, String> {
 fn robot_file() -> Vec<Vec<u8>> {
     let robot = repo_file("runtime/world/data/robot.toml");
     let mut seeds = vec![with_mode(0, &robot)];
-    let path = std::env::temp_dir().join(format!("grop-seed-robot-{}.json", std::process::id()));
+    let path = scratch_path("robot", "json");
     if world::RobotConfig::default().save(&path).is_ok()
         && let Ok(json) = std::fs::read(&path)
     {
@@ -499,7 +510,7 @@ fn mission_log() -> Vec<Vec<u8>> {
         })
         .collect();
     // A whole log, as the recorder writes it.
-    let path = std::env::temp_dir().join(format!("grop-seed-log-{}.mcap", std::process::id()));
+    let path = scratch_path("log", "mcap");
     let mut metadata = std::collections::BTreeMap::new();
     metadata.insert(
         "grop.mission".to_owned(),

@@ -462,7 +462,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         "# GROP decision latency\n\n<!-- written by `grop bench` -->\n\nOne core, release build, evaluation scenes \
          (15/20/25 chairs), the committed FCN `models/psi-fcn.onnx`; the `grop-3` and `grop+-3` decisions take Psi's views \
          cut from a 640 x 480 overhead camera frame (`world::camera::cut_view`, the onboard `grop-planner` path; the frame is \
-         rendered once per scene, outside the decision), `grop-3-rendered` renders the crops from the scene instead; shortest any-angle paths on the world's 0.1 m grid (corner visibility graph, built once per map: the `map` row). \
+         rendered once per scene, outside the decision), `grop-3-rendered` renders the crops from the scene instead; shortest any-angle paths on the world's 0.1 m grid (corner visibility graph, built once per map: the `map` row; which corners the cells where decisions put endpoints see, and the station's connection, also once per map: the `map/sight` row, `planner::costs::prepare_grid_for_decisions`). \
          Reproduce: `cargo run --release -p grop-cli -- bench --write-docs`.\n\n| case | what | n | p50 (ms) | p99 (ms) |\n|---|---|---|---|---|\n",
     );
     for c in &cases {
@@ -497,6 +497,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         verdict(p50, 0.5),
         verdict(p99, 1.0),
         cases[7].pct(0.5) - p50,
+    ));
+    md.push_str(&format!(
+        "\nPer-map sight table: at most {sight_cells} cells, {} KiB.\n",
+        sight_bytes / 1024
     ));
     println!(
         "lazy calls: 3 objects {lazy3_mean_calls:.1} (of 19), 10 objects {lazy10_mean_calls:.1} (of 381)"
