@@ -531,10 +531,29 @@ pub fn check_view(layout: &FrameLayout, target_x_m: f64, side: Side) -> Result<(
 
 /// The frame columns `[p0, p1)` a view's cells touch.
 fn view_pixel_columns(layout: &FrameLayout, target_x_m: f64, side: Side) -> (usize, usize) {
-    let cols = view_spans(layout, target_x_m, side).1;
-    let p0 = cols.iter().map(|s| s.first).min().unwrap_or(0);
-    let p1 = cols.iter().map(|s| s.last).max().unwrap_or(0).max(p0);
+    // A column's span moves monotonically with the column (clamping keeps the order), so the
+    // extremes are at the two end columns.
+    let ends = [0, CROP_COLS - 1].map(|c| col_span(layout, target_x_m, side, c));
+    let p0 = ends[0].first.min(ends[1].first);
+    let p1 = ends[0].last.max(ends[1].last).max(p0);
     (p0, p1)
+}
+
+/// The frame pixel span of crop column `c`.
+fn col_span(layout: &FrameLayout, target_x_m: f64, side: Side, c: usize) -> Span {
+    let cam = &layout.camera;
+    let m = cam.metres_per_px;
+    let width_px = f64::from(cam.width_px);
+    let (xa, _) = crop_point_world(target_x_m, side, 0.0, c as f64);
+    let (xb, _) = crop_point_world(target_x_m, side, 1.0, c as f64 + 1.0);
+    let u0 = ((xa.min(xb) - cam.left_x_m) / m).clamp(0.0, width_px);
+    let u1 = (u0 + CELL_SIZE_M / m).min(width_px);
+    Span {
+        lo: u0,
+        hi: u1,
+        first: u0.floor() as usize,
+        last: (u1.ceil() as usize).min(cam.width_px as usize),
+    }
 }
 
 /// The pixel spans of a view's crop rows and columns in the frame. A cell's horizontal pixel
@@ -548,21 +567,11 @@ fn view_spans(
 ) -> ([Span; CROP_ROWS], [Span; CROP_COLS]) {
     let cam = &layout.camera;
     let m = cam.metres_per_px;
-    let width_px = f64::from(cam.width_px);
     let height_px = f64::from(cam.height_px);
     let cell_px = CELL_SIZE_M / m;
     let mut cols = [Span::EMPTY; CROP_COLS];
     for (c, span) in cols.iter_mut().enumerate() {
-        let (xa, _) = crop_point_world(target_x_m, side, 0.0, c as f64);
-        let (xb, _) = crop_point_world(target_x_m, side, 1.0, c as f64 + 1.0);
-        let u0 = ((xa.min(xb) - cam.left_x_m) / m).clamp(0.0, width_px);
-        let u1 = (u0 + cell_px).min(width_px);
-        *span = Span {
-            lo: u0,
-            hi: u1,
-            first: u0.floor() as usize,
-            last: (u1.ceil() as usize).min(cam.width_px as usize),
-        };
+        *span = col_span(layout, target_x_m, side, c);
     }
     let mut rows = [Span::EMPTY; CROP_ROWS];
     for (r, span) in rows.iter_mut().enumerate() {
@@ -581,17 +590,18 @@ fn view_spans(
 }
 
 /// Most frame pixels the views cut together may span along a row ([`cut_group`]'s buffers live
-/// on the stack): a lone view may have 16 per cell, so cameras down to about 4 mm/px. Finer
-/// frames take [`cut_per_cell`].
-const SEPARABLE_MAX_PX: usize = 1024;
+/// on the stack, zeroed per call): a lone view may have 8 per cell, so cameras down to about
+/// 8 mm/px. Finer frames take [`cut_per_cell`].
+const SEPARABLE_MAX_PX: usize = 512;
 
 /// Rounds a non-negative value half away from zero, like `f64::round`, clamped to a byte,
 /// without the libm call (exact: the integer part and the fraction are both exact in f64).
+#[inline(always)]
 fn round_non_negative(x: f64) -> u8 {
-    let x = x.min(255.0);
-    let t = x as u32;
-    let r = if x - f64::from(t) >= 0.5 { t + 1 } else { t };
-    r.min(255) as u8
+    let x = x.clamp(0.0, 255.0);
+    let t = x as i32;
+    // At most 255: 255.0 has no fraction.
+    (t + i32::from(x - f64::from(t) >= 0.5)) as u8
 }
 
 /// The crops of views of one side (`members`: crop index and column spans; `rows` their common
@@ -604,6 +614,40 @@ fn round_non_negative(x: f64) -> u8 {
 /// reference). Members whose columns do not fit `MAX_PX` together are cut one by one, and one
 /// that does not fit alone by [`cut_per_cell`].
 fn cut_group<const MAX_PX: usize>(
+    pixels: &[u8],
+    layout: &FrameLayout,
+    rows: &[Span; CROP_ROWS],
+    members: &[(usize, [Span; CROP_COLS])],
+    crops: &mut [[u8; CROP_ROWS * CROP_COLS]],
+) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU has AVX2 (checked just above); the function has no other
+            // requirement.
+            unsafe { cut_group_avx2::<MAX_PX>(pixels, layout, rows, members, crops) };
+            return;
+        }
+    }
+    cut_group_body::<MAX_PX>(pixels, layout, rows, members, crops);
+}
+
+/// [`cut_group`] compiled for AVX2 (wider vectors for the gray conversion, the row sums and the
+/// roundings; no fused multiply-add, so the same results bit for bit).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn cut_group_avx2<const MAX_PX: usize>(
+    pixels: &[u8],
+    layout: &FrameLayout,
+    rows: &[Span; CROP_ROWS],
+    members: &[(usize, [Span; CROP_COLS])],
+    crops: &mut [[u8; CROP_ROWS * CROP_COLS]],
+) {
+    cut_group_body::<MAX_PX>(pixels, layout, rows, members, crops);
+}
+
+#[inline(always)]
+fn cut_group_body<const MAX_PX: usize>(
     pixels: &[u8],
     layout: &FrameLayout,
     rows: &[Span; CROP_ROWS],
@@ -659,19 +703,40 @@ fn cut_group<const MAX_PX: usize>(
             used += n;
         }
     }
+    // Where every cell spans at most three pixels (cameras of 2.1 cm/px or coarser), the same
+    // weights as three per cell, zero-padded: `0 * a` adds an exact zero, so the sums are the
+    // same, bit for bit, without a loop per cell.
+    let mut three = [[([0.0f64; 3], 0usize); CROP_COLS]; MAX_GROUP];
+    let mut fits_three = [false; MAX_GROUP];
+    for (g, (w, cells)) in weights
+        .iter()
+        .zip(cells.iter())
+        .enumerate()
+        .take(members.len())
+    {
+        fits_three[g] = cells.iter().all(|&(_, _, n, _)| n <= 3);
+        if fits_three[g] {
+            for (t, &(at, first, n, _)) in three[g].iter_mut().zip(cells.iter()) {
+                t.0[..n].copy_from_slice(&w[at..at + n]);
+                t.1 = first;
+            }
+        }
+    }
     let scale = match layout.format {
         PixelFormat::Mono8 => 1.0,
         PixelFormat::Rgb8 => 1.0 / 256.0,
     };
     let mut gray_row = [0.0f64; MAX_PX];
     let mut gray_of = usize::MAX;
-    let mut acc = [0.0f64; MAX_PX];
+    // Two more than `width` ever needs: the three-wide sums read up to two past a cell's last
+    // pixel (with weight zero); they stay zero.
+    let mut acc_buf = [0.0f64; SEPARABLE_MAX_PX + 2];
     // Crop rows in frame-row order, so a frame row two crop rows share is converted once.
     let ascending = rows[0].first <= rows[CROP_ROWS - 1].first;
     for k in 0..CROP_ROWS {
         let r = if ascending { k } else { CROP_ROWS - 1 - k };
         let rs = &rows[r];
-        let acc = &mut acc[..width];
+        let acc = &mut acc_buf[..width];
         acc.fill(0.0);
         let mut area_y = 0.0;
         for row in rs.first..rs.last {
@@ -693,28 +758,41 @@ fn cut_group<const MAX_PX: usize>(
                 *a += wy * g;
             }
         }
-        for ((i, _), (w, cells)) in members.iter().zip(weights.iter().zip(cells.iter())) {
+        let acc = &acc_buf;
+        for (g, ((i, _), (w, cells))) in members
+            .iter()
+            .zip(weights.iter().zip(cells.iter()))
+            .enumerate()
+        {
             // Sums first, then the divisions and roundings in a loop of their own (it
             // vectorises).
             let mut sums = [0.0f64; CROP_COLS];
-            for (sum, &(at, first, n, _)) in sums.iter_mut().zip(cells.iter()) {
-                *sum = w[at..at + n]
-                    .iter()
-                    .zip(&acc[first..first + n])
-                    .map(|(wx, a)| wx * a)
-                    .sum();
+            if fits_three[g] {
+                for (sum, &(wx, first)) in sums.iter_mut().zip(three[g].iter()) {
+                    let a = &acc[first..first + 3];
+                    *sum = wx[0] * a[0] + wx[1] * a[1] + wx[2] * a[2];
+                }
+            } else {
+                for (sum, &(at, first, n, _)) in sums.iter_mut().zip(cells.iter()) {
+                    *sum = w[at..at + n]
+                        .iter()
+                        .zip(&acc[first..first + n])
+                        .map(|(wx, a)| wx * a)
+                        .sum();
+                }
             }
             let out = &mut crops[*i][r * CROP_COLS..(r + 1) * CROP_COLS];
             for ((o, &sum), &(_, _, _, area_x)) in out.iter_mut().zip(&sums).zip(cells.iter()) {
                 let area = area_x * area_y;
                 let value = if area > 0.0 { sum * scale / area } else { 0.0 };
-                *o = round_non_negative(value.max(0.0));
+                *o = round_non_negative(value);
             }
         }
     }
 }
 
 /// One frame row's gray levels, times 256 for RGB8 (`77 R + 150 G + 29 B`, exact).
+#[inline(always)]
 fn gray_line(line: &[u8], format: PixelFormat, out: &mut [f64]) {
     match format {
         PixelFormat::Mono8 => {
@@ -723,10 +801,17 @@ fn gray_line(line: &[u8], format: PixelFormat, out: &mut [f64]) {
             }
         }
         PixelFormat::Rgb8 => {
-            for (g, px) in out.iter_mut().zip(line.chunks_exact(3)) {
-                *g = f64::from(
-                    77 * u32::from(px[0]) + 150 * u32::from(px[1]) + 29 * u32::from(px[2]),
-                );
+            // Integer luma, then the conversion, each in a loop of its own (blocks on the
+            // stack).
+            let mut luma = [0i32; 128];
+            for (line, out) in line.chunks(3 * 128).zip(out.chunks_mut(128)) {
+                let luma = &mut luma[..out.len()];
+                for (l, px) in luma.iter_mut().zip(line.chunks_exact(3)) {
+                    *l = 77 * i32::from(px[0]) + 150 * i32::from(px[1]) + 29 * i32::from(px[2]);
+                }
+                for (g, &l) in out.iter_mut().zip(luma.iter()) {
+                    *g = f64::from(l);
+                }
             }
         }
     }
