@@ -209,7 +209,15 @@ impl DirectConv {
         let image_in = self.in_c * h * w;
         let image_out = self.out_c * oh * ow;
         for img in 0..n {
-            geo.fill(buf, &input[img * image_in..][..image_in]);
+            let image = &input[img * image_in..][..image_in];
+            // Without padding, stride phases or extra columns the buffer would be a copy of
+            // the image: read the image itself (the 1x1 convolutions).
+            let buf: &[f32] = if geo.reads_input_in_place() {
+                image
+            } else {
+                geo.fill(buf, image);
+                buf
+            };
             let out = &mut out[img * image_out..][..image_out];
             let job = Job {
                 conv: self,
@@ -268,8 +276,6 @@ struct Geometry {
     sw: usize,
     pad_top: usize,
     pad_left: usize,
-    /// Vectors per output row (`ow` rounded up to whole vectors; the extra lanes are dropped).
-    vecs_per_row: usize,
     /// Rows of the padded input.
     hp: usize,
     /// Columns of one stride phase of the padded input, with room for the last vector.
@@ -277,9 +283,15 @@ struct Geometry {
     buf_len: usize,
     /// Offset of each tap `(ky, kx)` from a vector's base, within one input channel.
     taps: Vec<usize>,
-    /// Per output vector: its base offset in the buffer, its offset `y * ow + x0` in an output
-    /// plane, its lanes inside the row, its row `y` (tables, so the hot loops divide nothing).
-    vectors: Vec<(usize, (usize, usize, usize))>,
+    /// Per output vector: its base offset in the buffer (a table, so the hot loops divide
+    /// nothing; apart from [`Geometry::dests`] so that a block borrows its `N` entries of each
+    /// as arrays instead of copying them).
+    bases: Vec<usize>,
+    /// Per output vector: its offset `y * ow + x0` in an output plane, its lanes inside the
+    /// row, its row `y`.
+    dests: Vec<(usize, usize, usize)>,
+    /// The register blocks of one output-channel block: first vector and vector count.
+    blocks: Vec<(usize, usize)>,
     /// Per stride phase: the first input column of the phase and its offset in the buffer row.
     phases: Vec<(usize, usize)>,
 }
@@ -306,13 +318,16 @@ impl Geometry {
             sw: c.sw,
             pad_top: c.pad[0],
             pad_left: c.pad[1],
-            vecs_per_row,
-            vectors: (0..oh * vecs_per_row)
+            bases: (0..oh * vecs_per_row)
+                .map(|v| (v / vecs_per_row) * c.sh * wq + (v % vecs_per_row) * LANES)
+                .collect(),
+            dests: (0..oh * vecs_per_row)
                 .map(|v| {
                     let (y, x0) = (v / vecs_per_row, (v % vecs_per_row) * LANES);
-                    (y * c.sh * wq + x0, (y * ow + x0, (ow - x0).min(LANES), y))
+                    (y * ow + x0, (ow - x0).min(LANES), y)
                 })
                 .collect(),
+            blocks: register_blocks(oh * vecs_per_row),
             phases: (0..c.sw)
                 .map(|phase| {
                     // The smallest x >= 0 with (x + pad_left) % sw == phase.
@@ -325,6 +340,12 @@ impl Geometry {
             buf_len: c.in_c * c.sw * hp * wq,
             taps,
         }
+    }
+
+    /// Whether the padded, phase-split buffer has the image's own layout (no padding, stride 1
+    /// across, rows of whole vectors), so that the convolution can read the image in place.
+    fn reads_input_in_place(&self) -> bool {
+        self.sw == 1 && self.hp == self.h && self.wq == self.w
     }
 
     /// Floats of one input channel in the buffer.
@@ -344,16 +365,51 @@ impl Geometry {
                     continue;
                 }
                 // Padded column c = x + pad_left lands in phase c % sw at c / sw: per phase,
-                // a strided read of the row and a contiguous write.
+                // a strided read of the row and a contiguous write. As chunks of `sw` (not
+                // `step_by`), so that the compiler turns it into vector shuffles.
                 for &(first, offset) in &self.phases {
                     let dst = &mut buf[base + offset..];
-                    for (d, &v) in dst.iter_mut().zip(row.iter().skip(first).step_by(sw)) {
-                        *d = v;
+                    let src = &row[first.min(self.w)..];
+                    match sw {
+                        2 => copy_phase::<2>(dst, src),
+                        _ => {
+                            for (d, &v) in dst.iter_mut().zip(src.iter().step_by(sw)) {
+                                *d = v;
+                            }
+                        }
                     }
                 }
             }
         }
     }
+}
+
+/// `dst[k] = src[k * S]` for every `k` both have: one stride phase of an input row. With the
+/// stride a constant the loop has no division and becomes vector shuffles.
+fn copy_phase<const S: usize>(dst: &mut [f32], src: &[f32]) {
+    let chunks = src.chunks_exact(S);
+    let tail = chunks.remainder().first();
+    let mut written = 0;
+    for (d, chunk) in dst.iter_mut().zip(chunks) {
+        *d = chunk[0];
+        written += 1;
+    }
+    if let (Some(&v), Some(d)) = (tail, dst.get_mut(written)) {
+        *d = v;
+    }
+}
+
+/// `vectors` output vectors in register blocks of [`NV`], balanced (4 vectors as 2 + 2, not
+/// 3 + 1: a block of one vector has too few accumulators to keep the FMA units busy): each
+/// block's first vector and count.
+fn register_blocks(vectors: usize) -> Vec<(usize, usize)> {
+    let blocks = vectors.div_ceil(NV);
+    (0..blocks)
+        .map(|b| {
+            let v = vectors * b / blocks;
+            (v, vectors * (b + 1) / blocks - v)
+        })
+        .collect()
 }
 
 /// One image's convolution: inputs prepared, output to write.
@@ -368,74 +424,79 @@ struct Job<'a> {
 
 impl Job<'_> {
     fn run(&self, out: &mut [f32]) {
-        let vectors = self.geo.oh * self.geo.vecs_per_row;
+        let g = self.geo;
+        let per_block = g.in_c * g.taps.len() * OB;
         for ocb in 0..self.conv.out_c.div_ceil(OB) {
-            // Blocks of NV vectors, but balanced (4 vectors as 2 + 2, not 3 + 1): a block of
-            // one vector has too few accumulators to keep the FMA units busy.
-            let blocks = vectors.div_ceil(NV);
-            let mut v = 0;
-            for b in 0..blocks {
-                let nv = vectors * (b + 1) / blocks - v;
+            let weights = &self.packed[ocb * per_block..][..per_block];
+            let epilogue = Epilogue {
+                plane: g.oh * g.ow,
+                first_oc: ocb * OB,
+                out_c: self.conv.out_c,
+                bias: self.bias,
+                map: self.add_map,
+                relu: self.conv.relu,
+                shuffle: self.conv.shuffle,
+                ow: g.ow,
+            };
+            for &(v, nv) in &g.blocks {
                 match nv {
-                    3 => self.block::<3>(ocb, v, out),
-                    2 => self.block::<2>(ocb, v, out),
-                    _ => self.block::<1>(ocb, v, out),
+                    3 => self.block::<3>(weights, &epilogue, v, out),
+                    2 => self.block::<2>(weights, &epilogue, v, out),
+                    _ => self.block::<1>(weights, &epilogue, v, out),
                 }
-                v += nv;
             }
-            debug_assert_eq!(v, vectors);
         }
     }
 
-    /// `OB` output channels x `N` vectors from vector `v0`: accumulate, then bias, added map,
-    /// ReLU and store of the lanes inside the output row.
-    fn block<const N: usize>(&self, ocb: usize, v0: usize, out: &mut [f32]) {
-        let bases: [usize; N] = std::array::from_fn(|j| self.geo.vectors[v0 + j].0);
-        let per_block = self.geo.in_c * self.geo.taps.len() * OB;
-        let weights = &self.packed[ocb * per_block..][..per_block];
-        // Where each vector's lanes go in one output plane, and how many lie inside the row.
+    /// `OB` output channels (`weights`: their block) x `N` vectors from vector `v0`:
+    /// accumulate, then bias, added map, ReLU and store of the lanes inside the output row.
+    fn block<const N: usize>(
+        &self,
+        weights: &[f32],
+        epilogue: &Epilogue,
+        v0: usize,
+        out: &mut [f32],
+    ) {
         let g = self.geo;
-        let dest: [(usize, usize, usize); N] = std::array::from_fn(|j| g.vectors[v0 + j].1);
-        let plane = g.oh * g.ow;
-        let epilogue = Epilogue {
-            plane,
-            first_oc: ocb * OB,
-            out_c: self.conv.out_c,
-            bias: self.bias,
-            map: self.add_map,
-            relu: self.conv.relu,
-            shuffle: self.conv.shuffle,
-            ow: g.ow,
+        // Borrowed in place: copying these small arrays onto the stack cost a store-forwarding
+        // stall per block (the profile's hottest instruction outside the sums).
+        let (Some(bases), Some(dest)) = (
+            g.bases[v0..].first_chunk::<N>(),
+            g.dests[v0..].first_chunk::<N>(),
+        ) else {
+            unreachable!("register blocks lie inside the vector tables")
         };
+        let ocb = epilogue.first_oc / OB;
+        let plane = epilogue.plane;
         let mut acc = [[[0.0f32; LANES]; N]; OB];
         #[cfg(target_arch = "x86_64")]
         if simd_available() {
             // SAFETY: AVX2 and FMA are present (checked at run time); the function checks its
             // own bounds. It stores the vectors whose 8 lanes are all inside the row itself.
             // The 3x3 and 1x1 tap loops get a constant trip count, so they unroll.
-            let (buf, bases, acc, dest) = (self.buf, &bases, &mut acc, &dest);
+            let (buf, acc) = (self.buf, &mut acc);
             unsafe {
                 match g.taps.len() {
-                    9 => accumulate_avx2::<N, 9>(buf, weights, g, bases, acc, &epilogue, dest, out),
-                    1 => accumulate_avx2::<N, 1>(buf, weights, g, bases, acc, &epilogue, dest, out),
-                    _ => accumulate_avx2::<N, 0>(buf, weights, g, bases, acc, &epilogue, dest, out),
+                    9 => accumulate_avx2::<N, 9>(buf, weights, g, bases, acc, epilogue, dest, out),
+                    1 => accumulate_avx2::<N, 1>(buf, weights, g, bases, acc, epilogue, dest, out),
+                    _ => accumulate_avx2::<N, 0>(buf, weights, g, bases, acc, epilogue, dest, out),
                 }
             };
             if dest.iter().all(|&(_, lanes, _)| lanes == LANES) {
                 return;
             }
         } else {
-            accumulate_scalar::<N>(self.buf, weights, g, &bases, &mut acc);
+            accumulate_scalar::<N>(self.buf, weights, g, bases, &mut acc);
         }
         #[cfg(not(target_arch = "x86_64"))]
-        accumulate_scalar::<N>(self.buf, weights, g, &bases, &mut acc);
+        accumulate_scalar::<N>(self.buf, weights, g, bases, &mut acc);
         let simd_stored = cfg!(target_arch = "x86_64") && simd_available_any();
         for (o, rows) in acc.iter().enumerate() {
             let oc = ocb * OB + o;
             if oc >= self.conv.out_c {
                 break;
             }
-            for (row, &(at, lanes, y)) in rows.iter().zip(&dest) {
+            for (row, &(at, lanes, y)) in rows.iter().zip(dest) {
                 if simd_stored && lanes == LANES {
                     continue;
                 }

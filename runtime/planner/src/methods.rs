@@ -30,7 +30,7 @@ use crate::grop_plus::GropPlusConfig;
 use crate::problem::{CANDIDATE_CELLS, ProblemError, TaskProblem, UnloadLocation, candidate_index};
 use crate::task::{
     MAX_OBJECTS, PlanningTable, TaskPlan, TaskPlanError, UnloadStep, location_index, optimise,
-    satisficing_plans,
+    satisficing_plans_shared,
 };
 
 /// The planning methods compared in the paper.
@@ -250,7 +250,7 @@ pub struct PlannedTask {
     /// Per (object, side): `Fea^t` and the goal.
     pub locations: Vec<LocationRow>,
     /// For enumerating utility methods: every plan's F, C, U in enumeration order (see
-    /// [`satisficing_plans`]); empty otherwise.
+    /// [`crate::task::satisficing_plans`]); empty otherwise.
     pub candidates: Vec<Scored>,
     /// Index of the chosen plan in `candidates` when enumerated.
     pub chosen_candidate: Option<usize>,
@@ -577,9 +577,9 @@ impl TaskMotionPlanner for Planner {
             MethodKind::Grop | MethodKind::GropPlus | MethodKind::FcnPlanning => {
                 let enumerate = self.enumerate_or_exact(n);
                 let plans = if enumerate {
-                    satisficing_plans(n)?
+                    satisficing_plans_shared(n)?
                 } else {
-                    Vec::new()
+                    std::borrow::Cow::Owned(Vec::new())
                 };
                 let mut table = PlanningTable::zeros(n);
                 table.feasibility.copy_from_slice(&location_f);
@@ -595,7 +595,7 @@ impl TaskMotionPlanner for Planner {
                         let mut argmax = Argmax::new(cfg.success_bonus_r);
                         candidates.clear();
                         candidates.reserve(plans.len());
-                        for p in &plans {
+                        for p in plans.iter() {
                             let c = Candidate {
                                 feasibility: table.plan_feasibility(p, cfg.aggregation),
                                 cost_s: table.plan_cost_s(p),

@@ -379,6 +379,33 @@ pub fn satisficing_plans(n_objects: usize) -> Result<Vec<TaskPlan>, TaskPlanErro
     Ok(plans)
 }
 
+/// Up to this many objects [`satisficing_plans_shared`] keeps its plans for the process (288
+/// plans for 3; 4 objects are 9,216 plans, about 1 MiB, built per call instead).
+const SHARED_PLANS_MAX_OBJECTS: usize = 3;
+
+/// [`satisficing_plans`], the same plans in the same order, built once per object count (up to
+/// 3 objects) and kept for the process: a decision enumerates the same plans every time, and
+/// building them is two allocations per plan (576 for 3 objects). More objects are built per
+/// call.
+pub fn satisficing_plans_shared(
+    n_objects: usize,
+) -> Result<std::borrow::Cow<'static, [TaskPlan]>, TaskPlanError> {
+    use std::borrow::Cow;
+    use std::sync::OnceLock;
+    static PLANS: [OnceLock<Vec<TaskPlan>>; SHARED_PLANS_MAX_OBJECTS] =
+        [const { OnceLock::new() }; SHARED_PLANS_MAX_OBJECTS];
+    match n_objects.checked_sub(1).and_then(|i| PLANS.get(i)) {
+        Some(slot) => {
+            if let Some(plans) = slot.get() {
+                return Ok(Cow::Borrowed(plans));
+            }
+            let plans = satisficing_plans(n_objects)?;
+            Ok(Cow::Borrowed(slot.get_or_init(|| plans)))
+        }
+        None => satisficing_plans(n_objects).map(Cow::Owned),
+    }
+}
+
 /// Index of (object, side) in the per-location arrays of a [`PlanningTable`]:
 /// `2 * object + (0 near, 1 far)`.
 pub fn location_index(object: ObjectId, side: Side) -> usize {
@@ -1108,6 +1135,13 @@ mod tests {
             assert_eq!(p.actions().len(), 1 + 3 + 6);
         }
         assert_eq!(satisficing_plans(1).unwrap().len(), 2);
+        for n in 0..=6 {
+            let shared = satisficing_plans_shared(n).map(|p| p.into_owned());
+            assert_eq!(shared, satisficing_plans(n), "{n} objects");
+            // The second call reads what the first kept.
+            let again = satisficing_plans_shared(n).map(|p| p.into_owned());
+            assert_eq!(again, satisficing_plans(n), "{n} objects, again");
+        }
         assert_eq!(satisficing_plans(4).unwrap().len(), 9216);
         assert_eq!(satisficing_plans(0), Err(TaskPlanError::NoObjects));
         assert!(matches!(

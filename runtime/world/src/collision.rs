@@ -3,7 +3,7 @@
 use nalgebra::{Point3, Vector3};
 use ur5e_kin::{BasePose, ObstacleBox};
 
-use crate::geometry::OrientedRect;
+use crate::geometry::{OrientedRect, OverlapProbe};
 use crate::robot::{BaseCollisionModel, RobotConfig};
 use crate::scene::{Chair, Scene, TABLE_CENTER_Y_M};
 
@@ -220,8 +220,11 @@ pub struct BaseCollisionChecker {
     room: crate::scene::Room,
     /// The base footprint at (0, 0) with the checker's yaw; moved per check.
     base: OrientedRect,
+    /// The base against each table; the tables themselves for the disc model.
+    table_probes: [OverlapProbe; 2],
     tables: [OrientedRect; 2],
-    chairs: Vec<OrientedRect>,
+    /// The base against each chair that a base in the box can touch.
+    chairs: Vec<OverlapProbe>,
     /// Chair centres, for the disc model.
     chair_centres: Vec<(f64, f64)>,
     /// `Some(r^2)`: [`BaseCollisionModel::ChairDiscs`] of radius r.
@@ -242,18 +245,25 @@ impl BaseCollisionChecker {
             BaseCollisionModel::ChairDiscs { radius_m } => Some(radius_m * radius_m),
             _ => None,
         };
+        let base = robot.footprint.at(0.0, 0.0, yaw_rad);
         let (chairs, chair_centres) = if disc_r2.is_some() {
             (Vec::new(), near.map(|c| (c.x_m, c.y_m)).collect())
         } else {
-            (near.map(|c| c.footprint()).collect(), Vec::new())
+            (
+                near.map(|c| OverlapProbe::new(&c.footprint(), &base))
+                    .collect(),
+                Vec::new(),
+            )
         };
+        let tables = [
+            scene.banquet_table.footprint(),
+            scene.loading_table.footprint(),
+        ];
         Self {
             room: scene.room,
-            base: robot.footprint.at(0.0, 0.0, yaw_rad),
-            tables: [
-                scene.banquet_table.footprint(),
-                scene.loading_table.footprint(),
-            ],
+            base,
+            table_probes: tables.map(|t| OverlapProbe::new(&t, &base)),
+            tables,
             chairs,
             chair_centres,
             disc_r2,
@@ -275,9 +285,9 @@ impl BaseCollisionChecker {
         footprint.center_x_m = x_m;
         footprint.center_y_m = y_m;
         !self.room.contains_rect(&footprint)
-            || footprint.overlaps(&self.tables[0])
-            || footprint.overlaps(&self.tables[1])
-            || self.chairs.iter().any(|c| c.overlaps(&footprint))
+            || self.table_probes[0].overlaps_at(x_m, y_m)
+            || self.table_probes[1].overlaps_at(x_m, y_m)
+            || self.chairs.iter().any(|c| c.overlaps_at(x_m, y_m))
     }
 }
 
