@@ -549,6 +549,10 @@ fn simd_available_any() -> bool {
 
 #[cfg(target_arch = "x86_64")]
 fn simd_available() -> bool {
+    #[cfg(test)]
+    if tests::FORCE_PLAIN.with(|f| f.get()) {
+        return false;
+    }
     static AVAILABLE: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
     *AVAILABLE.get_or_init(|| {
         std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma")
@@ -1090,4 +1094,90 @@ fn sole_binary_consumer<B: BinMiniOp>(
         return Ok(None);
     }
     Ok(Some((next.id, konst)))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    thread_local! {
+        /// Makes this thread's convolutions take the plain-Rust path.
+        pub(super) static FORCE_PLAIN: std::cell::Cell<bool> = const { std::cell::Cell::new(false) };
+    }
+
+    /// Deterministic values in [-1, 1).
+    fn values(n: usize, seed: u64) -> Vec<f32> {
+        let mut x = seed
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (0..n)
+            .map(|_| {
+                x = x
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                ((x >> 40) as f32 / (1u64 << 23) as f32) - 1.0
+            })
+            .collect()
+    }
+
+    /// The plain-Rust path (what a robot computer without AVX2 + FMA runs, an ARM board among
+    /// them) gives what the AVX2 path gives on every kind of convolution the network has: 3x3
+    /// at strides 1 and 2 with padding, 1x1, with the bias, an added map, ReLU and
+    /// depth-to-space fused, rows that end inside a vector, odd and even vector counts, a batch.
+    /// (They differ only by fused versus separate multiply-add rounding.)
+    #[test]
+    fn plain_path_equals_the_simd_path() {
+        // (in_c, out_c, kernel, stride, pad, h, w, add, relu, shuffle)
+        let cases = [
+            (1, 8, 3, 2, 1, 32, 64, true, true, false),
+            (8, 16, 3, 2, 1, 16, 32, false, true, false),
+            (16, 16, 3, 1, 1, 8, 16, false, true, false),
+            (16, 32, 3, 2, 1, 8, 16, false, true, false),
+            (32, 8, 1, 1, 0, 4, 8, false, false, false),
+            (8, 16, 1, 1, 0, 8, 16, false, false, true),
+            (3, 5, 3, 1, 1, 7, 13, true, true, false),
+            (4, 6, 3, 2, 1, 9, 21, false, false, false),
+        ];
+        for (k, &(in_c, out_c, ks, stride, pad, h, w, add, relu, shuffle)) in
+            cases.iter().enumerate()
+        {
+            let weights = Tensor::from_shape(
+                &[out_c, in_c, ks, ks],
+                &values(out_c * in_c * ks * ks, 10 + k as u64),
+            )
+            .unwrap();
+            let mut conv = DirectConv::new(
+                &weights,
+                &values(out_c, 20 + k as u64),
+                [stride, stride],
+                [pad; 4],
+            )
+            .unwrap();
+            let (oh, ow) = conv.output_hw(h, w).unwrap();
+            if add {
+                let map =
+                    Tensor::from_shape(&[out_c, oh, ow], &values(out_c * oh * ow, 30)).unwrap();
+                conv = conv.with_add(&map, oh, ow).unwrap();
+            }
+            if relu {
+                conv = conv.with_relu();
+            }
+            conv.shuffle = shuffle;
+            let n = 2;
+            let input = values(n * in_c * h * w, 40 + k as u64);
+            let mut simd = vec![f32::NAN; n * out_c * oh * ow];
+            let mut plain = vec![f32::NAN; n * out_c * oh * ow];
+            conv.run(&input, n, h, w, &mut simd).unwrap();
+            FORCE_PLAIN.with(|f| f.set(true));
+            let ran = conv.run(&input, n, h, w, &mut plain);
+            FORCE_PLAIN.with(|f| f.set(false));
+            ran.unwrap();
+            for (i, (a, b)) in simd.iter().zip(&plain).enumerate() {
+                assert!(
+                    (a - b).abs() <= 1e-4 * (1.0 + a.abs()),
+                    "case {k}, output {i}: simd {a}, plain {b}"
+                );
+            }
+        }
+    }
 }
