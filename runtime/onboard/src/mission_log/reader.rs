@@ -115,9 +115,15 @@ const METADATA: u8 = 0x0C;
 /// record limit and sized its buffer by the claimed length, and its record parser reserves what a
 /// field claims before reading it: a 5 KB file claiming a 1 PiB record aborted the process on the
 /// failed allocation, a 2 KB one made it reserve 4 GiB. Found by fuzzing, docs/fuzzing.md.)
+///
+/// Uncompressed chunks are checked before the reader sees them ([`first_overrunning_chunk`]):
+/// the file is read up to the first chunk whose records overrun it, and that chunk is reported
+/// as the error (after what came before it, which is kept).
 struct Records<'a> {
     reader: mcap::sans_io::LinearReader,
     unread: &'a [u8],
+    /// Why the file is read only up to `unread`'s end, reported once the reader is done.
+    cut: Option<String>,
 }
 
 impl<'a> Records<'a> {
@@ -125,11 +131,91 @@ impl<'a> Records<'a> {
         let options = mcap::sans_io::LinearReaderOptions::default()
             .with_skip_end_magic(true)
             .with_record_length_limit(MAX_RECORD_BYTES);
+        let (unread, cut) = match first_overrunning_chunk(bytes) {
+            Some((at, detail)) => (&bytes[..at], Some(detail)),
+            None => (bytes, None),
+        };
         Self {
             reader: mcap::sans_io::LinearReader::new_with_options(options),
-            unread: bytes,
+            unread,
+            cut,
         }
     }
+}
+
+/// MCAP's magic, at the start (and end) of a file.
+const MAGIC_LEN: usize = 8;
+/// A record's opcode (1 byte) and length (u64).
+const RECORD_HEADER: usize = 9;
+const CHUNK: u8 = 0x06;
+
+/// The byte offset of the first top-level chunk record that is whole in `bytes` but whose
+/// records overrun it, uncompressed: its records claim more than the chunk holds, or a record
+/// claims more than the chunk's records have left. With why. (The mcap crate subtracts each
+/// inner record's length from what the chunk has left without checking: an overflow panic in a
+/// debug build, and in a release build a wrapped count after which the records of the rest of
+/// the file are read as the chunk's. Found by fuzzing, docs/fuzzing.md.) Compressed chunks are
+/// checked by the crate against their decompressed size. Records that are not whole are left
+/// to the reader, which reports them.
+fn first_overrunning_chunk(bytes: &[u8]) -> Option<(usize, String)> {
+    let mut at = MAGIC_LEN;
+    loop {
+        let header = bytes.get(at..at.checked_add(RECORD_HEADER)?)?;
+        let len = usize::try_from(u64::from_le_bytes(header[1..].try_into().ok()?)).ok()?;
+        let start = at + RECORD_HEADER;
+        let body = bytes.get(start..start.checked_add(len)?)?;
+        if header[0] == CHUNK {
+            if let Some(why) = chunk_overrun(body) {
+                return Some((at, format!("chunk record at byte {at}: {why}")));
+            }
+        }
+        at = start + len;
+    }
+}
+
+/// Why the records of an uncompressed chunk `body` overrun it, if they do.
+fn chunk_overrun(body: &[u8]) -> Option<String> {
+    // Message start and end times, uncompressed size (u64 each), uncompressed CRC (u32), then
+    // the compression name (u32 length and bytes) and the records' size (u64).
+    let u32_at = |at: usize| -> Option<usize> {
+        let b = body.get(at..at.checked_add(4)?)?;
+        Some(u32::from_le_bytes(b.try_into().ok()?) as usize)
+    };
+    let u64_at = |at: usize| -> Option<u64> {
+        let b = body.get(at..at.checked_add(8)?)?;
+        Some(u64::from_le_bytes(b.try_into().ok()?))
+    };
+    let name_len = u32_at(28)?;
+    if name_len != 0 {
+        return None;
+    }
+    let records_size = u64_at(32)?;
+    let records_start = 40;
+    let held = (body.len() - records_start) as u64;
+    if records_size > held {
+        return Some(format!(
+            "its records claim {records_size} bytes, it holds {held}"
+        ));
+    }
+    let mut left = records_size;
+    let mut at = records_start;
+    while left > 0 {
+        if left < RECORD_HEADER as u64 {
+            return Some(format!(
+                "{left} bytes left of its records, less than a record header"
+            ));
+        }
+        let len = u64_at(at + 1)?;
+        if len > left - RECORD_HEADER as u64 {
+            return Some(format!(
+                "a record at byte {at} of it claims {len} bytes, {} are left",
+                left - RECORD_HEADER as u64
+            ));
+        }
+        left -= RECORD_HEADER as u64 + len;
+        at += RECORD_HEADER + len as usize;
+    }
+    None
 }
 
 impl Iterator for Records<'_> {
@@ -154,10 +240,17 @@ impl Iterator for Records<'_> {
                     let record = mcap::parse_record(opcode, data);
                     return Some(record.map(|r| r.into_owned()).map_err(|e| e.to_string()));
                 }
-                Err(e) => return Some(Err(e.to_string())),
+                Err(e) => {
+                    // Past the cut the reader only sees the file end: the cut is the reason.
+                    let detail = match self.cut.take() {
+                        Some(cut) if self.unread.is_empty() => cut,
+                        _ => e.to_string(),
+                    };
+                    return Some(Err(detail));
+                }
             }
         }
-        None
+        self.cut.take().map(Err)
     }
 }
 
@@ -238,6 +331,64 @@ mod tests {
 
     use super::*;
     use crate::mission_log::{LogWriter, WriterConfig};
+
+    /// An uncompressed chunk record whose one inner record claims `claimed` bytes while the
+    /// chunk's records hold 20.
+    fn overrunning_chunk(claimed: u64) -> Vec<u8> {
+        let mut body = vec![0u8; 28]; // times, uncompressed size, CRC
+        body.extend(0u32.to_le_bytes()); // no compression
+        body.extend(20u64.to_le_bytes()); // records' size
+        body.push(MESSAGE);
+        body.extend(claimed.to_le_bytes());
+        body.extend([0u8; 11]);
+        let mut record = vec![CHUNK];
+        record.extend((body.len() as u64).to_le_bytes());
+        record.extend(body);
+        record
+    }
+
+    /// A chunk whose record claims more than the chunk holds is an error that names it, not an
+    /// overflow panic inside the mcap crate (a debug build) or the rest of the file read as
+    /// the chunk's records (a release build); what the file held before it is kept, and a
+    /// record that fits its chunk exactly is fine. (Found by the `mission_log` fuzz target.)
+    #[test]
+    fn a_chunk_overrun_by_its_records_is_reported_and_what_came_before_kept() {
+        // Alone after the magic and a header record: nothing read, an error.
+        let mut bytes = b"\x89MCAP0\r\n".to_vec();
+        bytes.extend([0x01, 8, 0, 0, 0, 0, 0, 0, 0]);
+        bytes.extend([0u8; 8]);
+        let chunk_at = bytes.len();
+        bytes.extend(overrunning_chunk(1000));
+        // Enough bytes after it for the crate to read the claimed record from.
+        bytes.extend([0u8; 1100]);
+        let err = MissionLog::from_bytes(&bytes, Path::new("overrun.mcap")).unwrap_err();
+        let text = err.to_string();
+        assert!(
+            text.contains(&format!("chunk record at byte {chunk_at}"))
+                && text.contains("claims 1000 bytes, 11 are left"),
+            "{text}"
+        );
+        // Exactly filling its chunk, the same record is no error.
+        assert_eq!(chunk_overrun(&overrunning_chunk(11)[9..]), None);
+
+        // After a log's messages (before its data-end record): they are kept, the log is
+        // marked truncated with the chunk as the reason.
+        let good = small_log();
+        let mut at = MAGIC_LEN;
+        while good[at] != 0x0F {
+            let len = u64::from_le_bytes(good[at + 1..at + 9].try_into().unwrap()) as usize;
+            at += RECORD_HEADER + len;
+        }
+        let mut spliced = good[..at].to_vec();
+        spliced.extend(overrunning_chunk(30));
+        spliced.extend(&good[at..]);
+        let log = MissionLog::from_bytes(&spliced, Path::new("spliced.mcap")).unwrap();
+        let whole = MissionLog::from_bytes(&good, Path::new("small.mcap")).unwrap();
+        assert_eq!(log.messages, whole.messages);
+        assert!(!log.messages.is_empty());
+        let why = log.truncated.as_deref().unwrap_or_default();
+        assert!(why.contains(&format!("chunk record at byte {at}")), "{why}");
+    }
 
     /// A small log: metadata and two messages, as the writer makes it.
     fn small_log() -> Vec<u8> {
