@@ -149,32 +149,38 @@ const MAGIC_LEN: usize = 8;
 const RECORD_HEADER: usize = 9;
 const CHUNK: u8 = 0x06;
 
-/// The byte offset of the first top-level chunk record that is whole in `bytes` but whose
-/// records overrun it, uncompressed: its records claim more than the chunk holds, or a record
-/// claims more than the chunk's records have left. With why. (The mcap crate subtracts each
-/// inner record's length from what the chunk has left without checking: an overflow panic in a
-/// debug build, and in a release build a wrapped count after which the records of the rest of
-/// the file are read as the chunk's. Found by fuzzing, docs/fuzzing.md.) Compressed chunks are
-/// checked by the crate against their decompressed size. Records that are not whole are left
-/// to the reader, which reports them.
+/// The byte offset of the first top-level chunk record whose records overrun it, uncompressed:
+/// its records claim more than the chunk holds, or a record claims more than the chunk's
+/// records have left. With why. (The mcap crate subtracts each inner record's length from what
+/// the chunk has left without checking: an overflow panic in a debug build, and in a release
+/// build a wrapped count after which the records of the rest of the file are read as the
+/// chunk's. Found by fuzzing, docs/fuzzing.md.) A chunk cut short by the file's end is checked
+/// as far as its bytes go (the crate reads its records from what is there). Compressed chunks
+/// are checked by the crate against their decompressed size.
 fn first_overrunning_chunk(bytes: &[u8]) -> Option<(usize, String)> {
     let mut at = MAGIC_LEN;
     loop {
         let header = bytes.get(at..at.checked_add(RECORD_HEADER)?)?;
         let len = usize::try_from(u64::from_le_bytes(header[1..].try_into().ok()?)).ok()?;
         let start = at + RECORD_HEADER;
-        let body = bytes.get(start..start.checked_add(len)?)?;
+        let end = start.checked_add(len)?;
+        let whole = end <= bytes.len();
         if header[0] == CHUNK {
-            if let Some(why) = chunk_overrun(body) {
+            let body = &bytes[start..end.min(bytes.len())];
+            if let Some(why) = chunk_overrun(body, whole) {
                 return Some((at, format!("chunk record at byte {at}: {why}")));
             }
         }
-        at = start + len;
+        if !whole {
+            return None;
+        }
+        at = end;
     }
 }
 
-/// Why the records of an uncompressed chunk `body` overrun it, if they do.
-fn chunk_overrun(body: &[u8]) -> Option<String> {
+/// Why the records of an uncompressed chunk `body` overrun it, if they do; `whole`: the body is
+/// all of the chunk (not cut short by the file's end).
+fn chunk_overrun(body: &[u8], whole: bool) -> Option<String> {
     // Message start and end times, uncompressed size (u64 each), uncompressed CRC (u32), then
     // the compression name (u32 length and bytes) and the records' size (u64).
     let u32_at = |at: usize| -> Option<usize> {
@@ -191,8 +197,8 @@ fn chunk_overrun(body: &[u8]) -> Option<String> {
     }
     let records_size = u64_at(32)?;
     let records_start = 40;
-    let held = (body.len() - records_start) as u64;
-    if records_size > held {
+    let held = body.len().checked_sub(records_start)? as u64;
+    if whole && records_size > held {
         return Some(format!(
             "its records claim {records_size} bytes, it holds {held}"
         ));
@@ -369,7 +375,22 @@ mod tests {
             "{text}"
         );
         // Exactly filling its chunk, the same record is no error.
-        assert_eq!(chunk_overrun(&overrunning_chunk(11)[9..]), None);
+        assert_eq!(chunk_overrun(&overrunning_chunk(11)[9..], true), None);
+
+        // A chunk cut short by the file's end (it claims 24,864 bytes) whose record still
+        // overruns its records' size with the bytes that are there: the same error.
+        let mut short = bytes[..chunk_at].to_vec();
+        let mut chunk = overrunning_chunk(30);
+        chunk[1..9].copy_from_slice(&24_864u64.to_le_bytes());
+        short.extend(chunk);
+        short.extend([0u8; 40]);
+        let err = MissionLog::from_bytes(&short, Path::new("short.mcap")).unwrap_err();
+        let text = err.to_string();
+        assert!(
+            text.contains(&format!("chunk record at byte {chunk_at}"))
+                && text.contains("claims 30 bytes, 11 are left"),
+            "{text}"
+        );
 
         // After a log's messages (before its data-end record): they are kept, the log is
         // marked truncated with the chunk as the reason.
