@@ -367,13 +367,17 @@ mod tests {
         bytes.extend(overrunning_chunk(1000));
         // Enough bytes after it for the crate to read the claimed record from.
         bytes.extend([0u8; 1100]);
-        let err = MissionLog::from_bytes(&bytes, Path::new("overrun.mcap")).unwrap_err();
-        let text = err.to_string();
-        assert!(
-            text.contains(&format!("chunk record at byte {chunk_at}"))
-                && text.contains("claims 1000 bytes, 11 are left"),
-            "{text}"
-        );
+        // The file is refused, naming the chunk and the record's claim.
+        let refused_naming = |file: &[u8], claim: &str| {
+            let text = MissionLog::from_bytes(file, Path::new("overrun.mcap"))
+                .unwrap_err()
+                .to_string();
+            assert!(
+                text.contains(&format!("chunk record at byte {chunk_at}")) && text.contains(claim),
+                "{text}"
+            );
+        };
+        refused_naming(&bytes, "claims 1000 bytes, 11 are left");
         // Exactly filling its chunk, the same record is no error.
         assert_eq!(chunk_overrun(&overrunning_chunk(11)[9..], true), None);
 
@@ -384,13 +388,7 @@ mod tests {
         chunk[1..9].copy_from_slice(&24_864u64.to_le_bytes());
         short.extend(chunk);
         short.extend([0u8; 40]);
-        let err = MissionLog::from_bytes(&short, Path::new("short.mcap")).unwrap_err();
-        let text = err.to_string();
-        assert!(
-            text.contains(&format!("chunk record at byte {chunk_at}"))
-                && text.contains("claims 30 bytes, 11 are left"),
-            "{text}"
-        );
+        refused_naming(&short, "claims 30 bytes, 11 are left");
 
         // After a log's messages (before its data-end record): they are kept, the log is
         // marked truncated with the chunk as the reason.
