@@ -220,8 +220,9 @@ pub struct BaseCollisionChecker {
     room: crate::scene::Room,
     /// The base footprint at (0, 0) with the checker's yaw; moved per check.
     base: OrientedRect,
-    /// The base against each table; the tables themselves for the disc model.
+    /// The base against each table (the footprint model).
     table_probes: [OverlapProbe; 2],
+    /// The tables themselves, for the disc model's point test.
     tables: [OrientedRect; 2],
     /// The base against each chair that a base in the box can touch.
     chairs: Vec<OverlapProbe>,
