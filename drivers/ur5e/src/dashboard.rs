@@ -16,6 +16,7 @@ use std::time::Duration;
 use thiserror::Error;
 
 use crate::line_link::{LineError, LineLink, MAX_LINE_LEN};
+use crate::transport::{TcpTransport, Transport};
 
 /// Default dashboard port.
 pub const DASHBOARD_PORT: u16 = 29999;
@@ -234,14 +235,15 @@ pub enum ProgramState {
     Paused(String),
 }
 
-/// A dashboard connection (reconnected after a timeout, see the module docs).
+/// A dashboard connection (reconnected after a timeout, see the module docs), over TCP unless
+/// built on another [`Transport`] with [`DashboardClient::over`].
 #[derive(Debug)]
-pub struct DashboardClient {
+pub struct DashboardClient<T = TcpTransport> {
     addr: SocketAddr,
-    link: LineLink,
+    link: LineLink<T>,
 }
 
-impl DashboardClient {
+impl DashboardClient<TcpTransport> {
     /// Connects and checks the welcome line.
     pub fn connect(addr: impl ToSocketAddrs, timeout: Duration) -> Result<Self, DashboardError> {
         let addr = addr
@@ -251,9 +253,21 @@ impl DashboardClient {
             .ok_or_else(|| {
                 DashboardError::Resolve(io::Error::new(io::ErrorKind::NotFound, "no address"))
             })?;
-        let link = LineLink::connect(addr, timeout)
+        let transport = TcpTransport::connect(addr, timeout, timeout)
             .map_err(|source| DashboardError::Io { addr, source })?;
-        let mut client = Self { addr, link };
+        Self::over(transport, timeout)
+    }
+}
+
+impl<T: Transport> DashboardClient<T> {
+    /// A client over an open `transport` (its peer sends the welcome line first), with
+    /// `timeout` for every reply; checks the welcome line.
+    pub fn over(transport: T, timeout: Duration) -> Result<Self, DashboardError> {
+        let link = LineLink::new(transport, timeout);
+        let mut client = Self {
+            addr: link.peer(),
+            link,
+        };
         client.check_welcome()?;
         Ok(client)
     }

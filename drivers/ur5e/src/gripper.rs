@@ -24,6 +24,7 @@ use std::time::{Duration, Instant};
 use thiserror::Error;
 
 use crate::line_link::{LineError, LineLink, MAX_LINE_LEN};
+use crate::transport::{TcpTransport, Transport};
 
 /// Default URCap gripper port.
 pub const GRIPPER_PORT: u16 = 63352;
@@ -123,15 +124,16 @@ impl GripperStatus {
     }
 }
 
-/// A Robotiq URCap socket connection (reconnected after a timeout, see the module docs).
+/// A Robotiq URCap socket connection (reconnected after a timeout, see the module docs), over
+/// TCP unless built on another [`Transport`] with [`RobotiqGripper::over`].
 #[derive(Debug)]
-pub struct RobotiqGripper {
+pub struct RobotiqGripper<T = TcpTransport> {
     addr: SocketAddr,
-    link: LineLink,
+    link: LineLink<T>,
     poll_period: Duration,
 }
 
-impl RobotiqGripper {
+impl RobotiqGripper<TcpTransport> {
     /// Connects to the URCap socket.
     pub fn connect(addr: impl ToSocketAddrs, timeout: Duration) -> Result<Self, GripperError> {
         let addr = addr
@@ -141,13 +143,21 @@ impl RobotiqGripper {
             .ok_or_else(|| {
                 GripperError::Resolve(io::Error::new(io::ErrorKind::NotFound, "no address"))
             })?;
-        let link =
-            LineLink::connect(addr, timeout).map_err(|source| GripperError::Io { addr, source })?;
-        Ok(Self {
-            addr,
+        let transport = TcpTransport::connect(addr, timeout, timeout)
+            .map_err(|source| GripperError::Io { addr, source })?;
+        Ok(Self::over(transport, timeout))
+    }
+}
+
+impl<T: Transport> RobotiqGripper<T> {
+    /// A client over an open `transport`, with `timeout` for every reply.
+    pub fn over(transport: T, timeout: Duration) -> Self {
+        let link = LineLink::new(transport, timeout);
+        Self {
+            addr: link.peer(),
             link,
             poll_period: Duration::from_millis(10),
-        })
+        }
     }
 
     /// One request/reply round trip. The request line is built on the stack and the reply read
@@ -396,9 +406,9 @@ impl GripperJob {
     }
 
     /// Sends this cycle's one request and advances. An error ends the job.
-    pub fn poll(
+    pub fn poll<T: Transport>(
         &mut self,
-        g: &mut RobotiqGripper,
+        g: &mut RobotiqGripper<T>,
         now: Duration,
     ) -> Result<GripperProgress, GripperError> {
         let timeout = self.timeout;

@@ -27,10 +27,12 @@ mod line_link;
 pub mod pose;
 pub mod rtde;
 pub mod script;
+pub mod transport;
 
 pub use arm::{
     ArmConfig, ArmConnectError, ArmState, GripperAction, Joints, MoveReport, SkillError,
     SkillOutcome, SkillProgress, Ur5eArm,
 };
 pub use gripper::GripOutcome;
+pub use line_link::MAX_LINE_LEN;
 pub use pose::TcpPose;

@@ -1,5 +1,6 @@
-//! One TCP connection that carries one ASCII request line and one reply line at a time (the
-//! dashboard server and the Robotiq URCap socket), with two guarantees the clients build on:
+//! One connection (TCP, or any [`Transport`]) that carries one ASCII request line and one
+//! reply line at a time (the dashboard server and the Robotiq URCap socket), with two guarantees
+//! the clients build on:
 //!
 //! - **A deadline per reply, not per read.** The deadline is fixed when the request has been
 //!   written, and every read waits only for what is left of it, so a server that dribbles a
@@ -14,12 +15,14 @@
 //! The line buffer is allocated once; a request/reply round trip allocates nothing unless it
 //! fails.
 
-use std::io::{self, Read, Write};
-use std::net::{Shutdown, SocketAddr, TcpStream};
+use std::io;
+use std::net::SocketAddr;
 use std::time::{Duration, Instant};
 
+use crate::transport::Transport;
+
 /// Longest reply line accepted, line break included (bytes).
-pub(crate) const MAX_LINE_LEN: usize = 4096;
+pub const MAX_LINE_LEN: usize = 4096;
 
 /// Why a reply line did not come.
 #[derive(Debug)]
@@ -36,9 +39,8 @@ pub(crate) enum LineError {
 
 /// A request/reply line connection (see the module docs).
 #[derive(Debug)]
-pub(crate) struct LineLink {
-    addr: SocketAddr,
-    stream: TcpStream,
+pub(crate) struct LineLink<T> {
+    transport: T,
     timeout: Duration,
     buf: Box<[u8]>,
     /// Bytes received and not yet consumed, from the buffer start.
@@ -48,25 +50,22 @@ pub(crate) struct LineLink {
     stale: bool,
 }
 
-impl LineLink {
-    /// Connects with `timeout` for the connect and for every later reply.
-    pub(crate) fn connect(addr: SocketAddr, timeout: Duration) -> io::Result<Self> {
-        Ok(Self {
-            addr,
-            stream: Self::open(addr, timeout)?,
+impl<T: Transport> LineLink<T> {
+    /// A link over `transport` with `timeout` for every reply.
+    pub(crate) fn new(transport: T, timeout: Duration) -> Self {
+        Self {
+            transport,
             timeout,
             buf: vec![0u8; MAX_LINE_LEN].into_boxed_slice(),
             len: 0,
             consumed: 0,
             stale: false,
-        })
+        }
     }
 
-    fn open(addr: SocketAddr, timeout: Duration) -> io::Result<TcpStream> {
-        let stream = TcpStream::connect_timeout(&addr, timeout)?;
-        stream.set_nodelay(true)?;
-        stream.set_write_timeout(Some(timeout))?;
-        Ok(stream)
+    /// The peer, for errors and logs.
+    pub(crate) fn peer(&self) -> SocketAddr {
+        self.transport.peer()
     }
 
     /// The reply timeout.
@@ -83,8 +82,7 @@ impl LineLink {
     /// Shuts the old socket and connects afresh; unread bytes of the old one are dropped. The
     /// link stays stale if this fails, so the next request tries again.
     pub(crate) fn reopen(&mut self) -> io::Result<()> {
-        let _ = self.stream.shutdown(Shutdown::Both);
-        self.stream = Self::open(self.addr, self.timeout)?;
+        self.transport.reopen()?;
         self.len = 0;
         self.consumed = 0;
         self.stale = false;
@@ -93,7 +91,7 @@ impl LineLink {
 
     /// Writes `request` (which carries its own line break).
     pub(crate) fn send(&mut self, request: &[u8]) -> io::Result<()> {
-        self.stream.write_all(request)
+        self.transport.write_all(request)
     }
 
     /// Reads one reply line (without `\n`; a `\r` stays for the caller to trim) that must be
@@ -124,10 +122,10 @@ impl LineLink {
                 self.stale = true;
                 return Err(LineError::Timeout);
             }
-            self.stream
-                .set_read_timeout(Some(left))
+            self.transport
+                .set_read_timeout(left)
                 .map_err(LineError::Io)?;
-            match self.stream.read(&mut self.buf[self.len..]) {
+            match self.transport.read(&mut self.buf[self.len..]) {
                 Ok(0) => return Err(LineError::Closed),
                 Ok(n) => self.len += n,
                 Err(e)

@@ -37,6 +37,8 @@ mod onboard;
 mod rmp;
 #[cfg(feature = "ur5e")]
 mod rtde;
+#[cfg(feature = "ur5e")]
+mod scripted;
 #[cfg(all(
     feature = "can",
     feature = "ur5e",
@@ -63,9 +65,9 @@ pub use model::model_loader;
 pub use onboard::{deployment_file, mission_log};
 pub use rmp::{rmp_feedback, rmp_gen1, rmp_packet, rmp_v3};
 #[cfg(feature = "ur5e")]
-pub use rtde::{rtde_client, rtde_wire};
+pub use rtde::{rtde_client, rtde_stream, rtde_wire};
 #[cfg(feature = "ur5e")]
-pub use ur5e_text::{dashboard_client, gripper_client};
+pub use ur5e_text::{dashboard_client, dashboard_replies, gripper_client, gripper_replies};
 #[cfg(feature = "ur5e")]
 pub use urscript::urscript;
 #[cfg(feature = "world")]
@@ -92,8 +94,11 @@ pub fn targets() -> Vec<Target> {
     all.extend([
         ("rtde_wire", rtde_wire as fn(&[u8])),
         ("rtde_client", rtde_client),
+        ("rtde_stream", rtde_stream),
         ("dashboard_client", dashboard_client),
+        ("dashboard_replies", dashboard_replies),
         ("gripper_client", gripper_client),
+        ("gripper_replies", gripper_replies),
         ("urscript", urscript),
     ]);
     #[cfg(feature = "world")]

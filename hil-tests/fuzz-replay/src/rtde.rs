@@ -1,5 +1,5 @@
-//! RTDE (`drivers/ur5e/src/rtde`): the wire format, and the client fed arbitrary byte streams by
-//! a fake controller on loopback.
+//! RTDE (`drivers/ur5e/src/rtde`): the wire format, and the client fed arbitrary byte streams,
+//! by a fake controller on loopback (the TCP transport) and in memory (at the decoders' speed).
 
 use std::time::Duration;
 
@@ -11,9 +11,11 @@ use ur5e::rtde::{
     ControllerVersion, DataPackage, PackageType, RtdeClient, RtdeReceiveError, RtdeRequestError,
     RtdeState, RtdeTimeouts, TextLevel, TextMessage,
 };
+use ur5e::transport::Transport;
 
 use crate::bytes::Bytes;
 use crate::net::OneShotServer;
+use crate::scripted::ScriptedStream;
 
 /// The package framing over the whole input, then each package's payload through the payload
 /// decoders (text message, controller version, setup reply words), and field values decoded by
@@ -180,25 +182,49 @@ pub fn rtde_client(data: &[u8]) {
     let mode = b.u8();
     let canned = mode & 1 == 1;
     let latest = mode & 2 == 2;
-    let mut stream = if canned {
-        canned_rtde_handshake()
-    } else {
-        Vec::new()
-    };
-    stream.extend_from_slice(b.rest());
+    let stream = controller_bytes(canned, b.rest());
     let server = OneShotServer::serve(stream);
     let timeouts = RtdeTimeouts {
         connect: Duration::from_secs(2),
         reply: Duration::from_secs(2),
         write: Duration::from_secs(1),
     };
-    let mut client = match RtdeClient::connect(server.addr(), timeouts) {
-        Ok(c) => c,
-        Err(e) => {
-            assert!(!canned, "a good handshake was refused: {e}");
-            return;
-        }
+    match RtdeClient::connect(server.addr(), timeouts) {
+        Ok(client) => rtde_session(client, canned, latest),
+        Err(e) => assert!(!canned, "a good handshake was refused: {e}"),
+    }
+    drop(server);
+}
+
+/// As [`rtde_client`], in memory: the controller's bytes arrive at most `mode >> 2` bytes a read
+/// (0: all that fit), and every write must be one whole package.
+pub fn rtde_stream(data: &[u8]) {
+    let mut b = Bytes::new(data);
+    let mode = b.u8();
+    let canned = mode & 1 == 1;
+    let latest = mode & 2 == 2;
+    let stream = controller_bytes(canned, b.rest());
+    let transport = ScriptedStream::new(&stream, usize::from(mode >> 2));
+    match RtdeClient::over(transport, RtdeTimeouts::default()) {
+        Ok(client) => rtde_session(client, canned, latest),
+        Err(e) => assert!(!canned, "a good handshake was refused: {e}"),
+    }
+}
+
+/// What the controller sends: the replies of a good handshake when `canned`, then `rest`.
+fn controller_bytes(canned: bool, rest: &[u8]) -> Vec<u8> {
+    let mut stream = if canned {
+        canned_rtde_handshake()
+    } else {
+        Vec::new()
     };
+    stream.extend_from_slice(rest);
+    stream
+}
+
+/// Version, both recipes, start, up to 16 receives, an input package and pause, on a connected
+/// client.
+fn rtde_session<T: Transport>(mut client: RtdeClient<T>, canned: bool, latest: bool) {
     assert_eq!(client.state(), RtdeState::Paused);
     let version = client.controller_version();
     if canned {
@@ -277,5 +303,4 @@ pub fn rtde_client(data: &[u8]) {
     let _ = client.pause();
     let _ = client.text_messages();
     client.disconnect();
-    drop(server);
 }

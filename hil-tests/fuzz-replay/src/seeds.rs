@@ -327,6 +327,20 @@ fn rtde_client() -> Vec<Vec<u8>> {
     vec![streaming, latest, raw, refused, not_found]
 }
 
+/// The socket seeds, and each again with packages split across reads of 1, 7 and 63 bytes.
+fn rtde_stream() -> Vec<Vec<u8>> {
+    let base = rtde_client();
+    let mut seeds = base.clone();
+    for cap in [1u8, 7, 63] {
+        seeds.extend(base.iter().filter(|s| !s.is_empty()).map(|s| {
+            let mut s = s.clone();
+            s[0] = (s[0] & 3) | (cap << 2);
+            s
+        }));
+    }
+    seeds
+}
+
 fn dashboard_client() -> Vec<Vec<u8>> {
     let replies = "Robotmode: RUNNING\nSafetystatus: NORMAL\nSTOPPED grop.urp\n\
                    Program running: false\nfalse\nURSoftware 5.21.0.1210631 (Oct 23 2024)\n\
@@ -350,6 +364,29 @@ fn gripper_client() -> Vec<Vec<u8>> {
         b"STA 0\nack\nack\nFLT 0\nSTA 1\nFLT 0\nSTA 3\nack\nPRE 255\nFLT 7\n".to_vec(),
         b"?\n".to_vec(),
     ]
+}
+
+/// The socket seeds, and conversations with the script's markers (`scripted`): a reply
+/// split across reads, a reply that times out and comes late on the old connection, a
+/// reconnect (welcome again), a connection refused.
+fn dashboard_replies() -> Vec<Vec<u8>> {
+    let mut seeds = dashboard_client();
+    let mut late = vec![1u8];
+    late.extend_from_slice(b"Robotmode: RUN\xFDNING\nSafetys\xFEtatus: NORMAL\n\xFF");
+    late.extend_from_slice(b"STOPPED grop.urp\nProgram running: false\n\xFEfalse\n\xFF");
+    late.extend_from_slice(b"URSoftware 5.21.0.1210631 (Oct 23 2024)\n20205500123\n\xFE");
+    seeds.push(late);
+    seeds
+}
+
+/// As [`dashboard_replies`], for the gripper.
+fn gripper_replies() -> Vec<Vec<u8>> {
+    let mut seeds = gripper_client();
+    seeds.push(
+        b"STA 3\nack\nPRE 2\xFD55\nFLT 0\nOBJ 0\xFE\nFL\xFFT 0\nOBJ 2\nSTA \xFD3\nSTA 3\nOBJ 2\n\xFE\xFF"
+            .to_vec(),
+    );
+    seeds
 }
 
 fn urscript() -> Vec<Vec<u8>> {
@@ -395,9 +432,9 @@ fn scene_file() -> Vec<Vec<u8>> {
     let demo = repo_file("hil-tests/grop-cli/out/demo-run/scene.toml");
     let mut seeds = vec![with_mode(0, &example), with_mode(0, &demo)];
     if let Ok(scene) = world::Scene::from_toml_str(&String::from_utf8_lossy(&example), "x.toml")
-        && let Ok(json) = serde_json_of_scene(&scene)
+        && let Ok(json) = scene.to_json_string()
     {
-        seeds.push(with_mode(1, &json));
+        seeds.push(with_mode(1, json.as_bytes()));
     }
     seeds
 }
@@ -413,25 +450,12 @@ fn scratch_path(what: &str, extension: &str) -> std::path::PathBuf {
     ))
 }
 
-/// The scene as the JSON the loader reads (written by the product's own `save`).
-fn serde_json_of_scene(scene: &world::Scene) -> Result<Vec<u8>, String> {
-    let path = scratch_path("scene", "json");
-    scene.save(&path).map_err(|e| e.to_string())?;
-    let bytes = std::fs::read(&path).map_err(|e| e.to_string())?;
-    let _ = std::fs::remove_file(&path);
-    Ok(bytes)
-}
-
 fn robot_file() -> Vec<Vec<u8>> {
     let robot = repo_file("runtime/world/data/robot.toml");
     let mut seeds = vec![with_mode(0, &robot)];
-    let path = scratch_path("robot", "json");
-    if world::RobotConfig::default().save(&path).is_ok()
-        && let Ok(json) = std::fs::read(&path)
-    {
-        seeds.push(with_mode(1, &json));
+    if let Ok(json) = world::RobotConfig::default().to_json_string() {
+        seeds.push(with_mode(1, json.as_bytes()));
     }
-    let _ = std::fs::remove_file(&path);
     seeds
 }
 
@@ -597,8 +621,11 @@ pub fn seeds() -> Vec<(&'static str, Vec<Vec<u8>>)> {
         ("candump_text", candump_text()),
         ("rtde_wire", rtde_wire()),
         ("rtde_client", rtde_client()),
+        ("rtde_stream", rtde_stream()),
         ("dashboard_client", dashboard_client()),
+        ("dashboard_replies", dashboard_replies()),
         ("gripper_client", gripper_client()),
+        ("gripper_replies", gripper_replies()),
         ("urscript", urscript()),
         ("scene_file", scene_file()),
         ("robot_file", robot_file()),

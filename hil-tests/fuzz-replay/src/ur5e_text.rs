@@ -1,13 +1,17 @@
 //! The UR5e's line protocols (`drivers/ur5e`): dashboard server replies and Robotiq URCap
-//! gripper replies, each fed to the real client by a fake server on loopback.
+//! gripper replies, each fed to the real client twice: by a fake server on loopback (the TCP
+//! transport, ~1 ms per input), and by an in-memory script of connections with timeouts and
+//! reconnects (`scripted`, at the parsers' speed).
 
 use std::time::Duration;
 
 use ur5e::dashboard::{DashboardClient, DashboardError, RobotMode, SafetyMode, WELCOME};
 use ur5e::gripper::{GripperError, GripperJob, GripperProgress, RobotiqGripper, STROKE_M};
+use ur5e::transport::Transport;
 
 use crate::bytes::Bytes;
 use crate::net::OneShotServer;
+use crate::scripted::ScriptedLine;
 
 const TIMEOUT: Duration = Duration::from_secs(2);
 
@@ -58,13 +62,36 @@ pub fn dashboard_client(data: &[u8]) {
     };
     stream.extend_from_slice(b.rest());
     let server = OneShotServer::serve(stream);
-    let mut client = match DashboardClient::connect(server.addr(), TIMEOUT) {
+    let client = match DashboardClient::connect(server.addr(), TIMEOUT) {
         Ok(c) => c,
         Err(e) => {
             assert!(!canned, "the documented welcome line was refused: {e}");
             return;
         }
     };
+    dashboard_session(client);
+    drop(server);
+}
+
+/// The dashboard client over an in-memory script of connections (`scripted`: `0xFF` ends a
+/// connection, `0xFE` times a read out, `0xFD` splits a read; every connection starts with the
+/// welcome line when bit 0 of the first byte is set), through the same commands and checks as
+/// [`dashboard_client`], and the transport's: no request goes out on a connection whose
+/// reply timed out.
+pub fn dashboard_replies(data: &[u8]) {
+    let mut b = Bytes::new(data);
+    let canned = b.u8() & 1 == 1;
+    let welcome = format!("{WELCOME}\n");
+    let greeting = if canned { welcome.as_bytes() } else { b"" };
+    let transport = ScriptedLine::new(b.rest(), greeting);
+    match DashboardClient::over(transport, TIMEOUT) {
+        Ok(client) => dashboard_session(client),
+        Err(e) => assert!(!canned, "the documented welcome line was refused: {e}"),
+    }
+}
+
+/// Every command with a checked reply, on a connected client.
+fn dashboard_session<T: Transport>(mut client: DashboardClient<T>) {
     let mut after = AfterClose { closed: false };
     let mode = client.robot_mode();
     if let Ok(m) = mode {
@@ -126,7 +153,6 @@ pub fn dashboard_client(data: &[u8]) {
     after.dashboard("robotmode (raw)", &r);
     let r = client.quit();
     after.dashboard("quit", &r);
-    drop(server);
 }
 
 /// The gripper client against a server that sends the input's bytes: an activate-and-move job
@@ -134,10 +160,23 @@ pub fn dashboard_client(data: &[u8]) {
 /// only in a move outcome or an error, never in "activated".
 pub fn gripper_client(data: &[u8]) {
     let server = OneShotServer::serve(data.to_vec());
-    let mut gripper = match RobotiqGripper::connect(server.addr(), TIMEOUT) {
+    let gripper = match RobotiqGripper::connect(server.addr(), TIMEOUT) {
         Ok(g) => g,
         Err(e) => panic!("connecting to a loopback listener failed: {e}"),
     };
+    gripper_session(gripper);
+    drop(server);
+}
+
+/// The gripper client over an in-memory script of connections (`scripted`, as
+/// [`dashboard_replies`]), through the same jobs and checks as [`gripper_client`], and the
+/// transport's: no request goes out on a connection whose reply timed out.
+pub fn gripper_replies(data: &[u8]) {
+    gripper_session(RobotiqGripper::over(ScriptedLine::new(data, b""), TIMEOUT));
+}
+
+/// An activate-and-move job, an activation job, a status read, a set and a get.
+fn gripper_session<T: Transport>(mut gripper: RobotiqGripper<T>) {
     let mut after = AfterClose { closed: false };
     let timeout = Duration::from_secs(3);
     let mut job = GripperJob::activate_and_move_to(255, 255, 128, timeout, Duration::ZERO);
@@ -171,6 +210,4 @@ pub fn gripper_client(data: &[u8]) {
     after.gripper("set", &r);
     let r = gripper.get("POS");
     after.gripper("get", &r);
-    drop(gripper);
-    drop(server);
 }

@@ -1,43 +1,24 @@
 //! Files an operator hands the robot (`runtime/world`): scene and robot files, as text.
 
-use std::path::{Path, PathBuf};
-use std::sync::OnceLock;
-
 use world::{RobotConfig, Scene};
 
-/// A folder of this process for the JSON files (the loaders pick JSON by the extension).
-fn scratch(file: &str) -> PathBuf {
-    static DIR: OnceLock<PathBuf> = OnceLock::new();
-    let dir = DIR.get_or_init(|| {
-        let dir = std::env::temp_dir().join(format!("grop-fuzz-replay-{}", std::process::id()));
-        if let Err(e) = std::fs::create_dir_all(&dir) {
-            panic!("cannot create {}: {e}", dir.display());
-        }
-        dir
-    });
-    // One file per thread: the replay test runs targets side by side.
-    dir.join(format!("{:?}-{file}", std::thread::current().id()).replace(['(', ')'], ""))
-}
-
-fn write(path: &Path, text: &[u8]) {
-    if let Err(e) = std::fs::write(path, text) {
-        panic!("cannot write {}: {e}", path.display());
-    }
-}
-
-/// A scene file: TOML text through `Scene::from_toml_str` (first byte even) or a `.json` file
-/// through `Scene::load` (odd). A scene that loads is valid, and saved and loaded again (TOML,
-/// and JSON for JSON input) it is the same scene.
+/// A scene file, in memory: TOML text through `Scene::from_toml_str` (first byte even) or JSON
+/// text through `Scene::from_json_str` (odd; a file that is not UTF-8 is refused on reading, as
+/// `Scene::load` does). A scene that loads is valid, and written and parsed again (TOML, and
+/// JSON for JSON input) it is the same scene. In memory, so that a run costs the parsers and
+/// not a temporary file: `Scene::load` is this plus `read_to_string` by the extension.
 pub fn scene_file(data: &[u8]) {
     let Some((&mode, text)) = data.split_first() else {
         return;
     };
-    let loaded = if mode % 2 == 0 {
-        Scene::from_toml_str(&String::from_utf8_lossy(text), "fuzz.toml")
+    let json = mode % 2 == 1;
+    let loaded = if json {
+        let Ok(text) = std::str::from_utf8(text) else {
+            return;
+        };
+        Scene::from_json_str(text, "fuzz.json")
     } else {
-        let path = scratch("scene.json");
-        write(&path, text);
-        Scene::load(&path)
+        Scene::from_toml_str(&String::from_utf8_lossy(text), "fuzz.toml")
     };
     let scene = match loaded {
         Ok(scene) => scene,
@@ -55,29 +36,32 @@ pub fn scene_file(data: &[u8]) {
         Ok(again) => assert_eq!(again, scene, "{toml}"),
         Err(e) => panic!("a written scene does not load: {e}\n{toml}"),
     }
-    if mode % 2 == 1 {
-        let path = scratch("scene-again.json");
-        if let Err(e) = scene.save(&path) {
-            panic!("a loaded scene cannot be saved: {e}");
-        }
-        match Scene::load(&path) {
-            Ok(again) => assert_eq!(again, scene),
-            Err(e) => panic!("a saved scene does not load: {e}"),
+    if json {
+        let text = match scene.to_json_string() {
+            Ok(t) => t,
+            Err(e) => panic!("a loaded scene cannot be written as JSON: {e}"),
+        };
+        match Scene::from_json_str(&text, "again.json") {
+            Ok(again) => assert_eq!(again, scene, "{text}"),
+            Err(e) => panic!("a written JSON scene does not load: {e}\n{text}"),
         }
     }
 }
 
-/// A robot file, as [`scene_file`]: valid once loaded, the same after a save and a load.
+/// A robot file, as [`scene_file`]: valid once loaded, and writes the same TOML after a write
+/// and a parse (JSON input also through JSON).
 pub fn robot_file(data: &[u8]) {
     let Some((&mode, text)) = data.split_first() else {
         return;
     };
-    let loaded = if mode % 2 == 0 {
-        RobotConfig::from_toml_str(&String::from_utf8_lossy(text), "fuzz.toml")
+    let json = mode % 2 == 1;
+    let loaded = if json {
+        let Ok(text) = std::str::from_utf8(text) else {
+            return;
+        };
+        RobotConfig::from_json_str(text, "fuzz.json")
     } else {
-        let path = scratch("robot.json");
-        write(&path, text);
-        RobotConfig::load(&path)
+        RobotConfig::from_toml_str(&String::from_utf8_lossy(text), "fuzz.toml")
     };
     let robot = match loaded {
         Ok(robot) => robot,
@@ -100,5 +84,16 @@ pub fn robot_file(data: &[u8]) {
     match again.to_toml_string() {
         Ok(t) => assert_eq!(t, toml),
         Err(e) => panic!("{e}"),
+    }
+    if json {
+        let text = match robot.to_json_string() {
+            Ok(t) => t,
+            Err(e) => panic!("a loaded robot cannot be written as JSON: {e}"),
+        };
+        match RobotConfig::from_json_str(&text, "again.json").map(|r| r.to_toml_string()) {
+            Ok(Ok(t)) => assert_eq!(t, toml, "{text}"),
+            Ok(Err(e)) => panic!("{e}"),
+            Err(e) => panic!("a written JSON robot file does not load: {e}\n{text}"),
+        }
     }
 }

@@ -210,6 +210,25 @@ impl RobotConfig {
             .map_err(|failure| RobotError::from_failure(failure, path))
     }
 
+    /// Parses and validates robot text in JSON; `origin` names the source in errors.
+    pub fn from_json_str(text: &str, origin: impl AsRef<Path>) -> Result<RobotConfig, RobotError> {
+        file::parse(
+            text,
+            FileEncoding::Json,
+            ROBOT_FORMAT_VERSION,
+            RobotConfig::validate,
+        )
+        .map_err(|failure| RobotError::from_failure(failure, origin.as_ref()))
+    }
+
+    /// The configuration as JSON text (as [`Self::save`] writes a `.json` file).
+    pub fn to_json_string(&self) -> Result<String, RobotError> {
+        serde_json::to_string_pretty(self).map_err(|e| RobotError::Write {
+            path: PathBuf::from("<memory>"),
+            message: e.to_string(),
+        })
+    }
+
     /// Parses and validates robot text in TOML; `origin` names the source in errors.
     pub fn from_toml_str(text: &str, origin: impl AsRef<Path>) -> Result<RobotConfig, RobotError> {
         file::parse(

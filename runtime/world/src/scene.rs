@@ -477,6 +477,25 @@ impl Scene {
             .map_err(|failure| SceneError::from_failure(failure, path))
     }
 
+    /// Parses and validates scene text in JSON; `origin` names the source in errors.
+    pub fn from_json_str(text: &str, origin: impl AsRef<Path>) -> Result<Scene, SceneError> {
+        file::parse(
+            text,
+            FileEncoding::Json,
+            SCENE_FORMAT_VERSION,
+            Scene::validate,
+        )
+        .map_err(|failure| SceneError::from_failure(failure, origin.as_ref()))
+    }
+
+    /// The scene as JSON text (as [`Self::save`] writes a `.json` file).
+    pub fn to_json_string(&self) -> Result<String, SceneError> {
+        serde_json::to_string_pretty(self).map_err(|e| SceneError::Serialize {
+            path: PathBuf::from("<memory>"),
+            message: e.to_string(),
+        })
+    }
+
     /// Parses and validates scene text in TOML; `origin` names the source in errors.
     pub fn from_toml_str(text: &str, origin: impl AsRef<Path>) -> Result<Scene, SceneError> {
         file::parse(

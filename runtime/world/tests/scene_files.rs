@@ -187,6 +187,38 @@ fn toml_and_json_round_trip() {
     }
 }
 
+/// The in-memory JSON path reads what `save` writes to a `.json` file, and its errors name the
+/// origin and the field, as the file path's do.
+#[test]
+fn json_text_round_trips_and_names_its_origin() {
+    let scene = world::generate::evaluation_scene(3, 25, 14);
+    let json = scene.to_json_string().expect("serialises");
+    let back = Scene::from_json_str(&json, "s.json").expect("parses");
+    assert_eq!(back, scene);
+    let dir = tempfile::tempdir().expect("temp dir");
+    let path = dir.path().join("s.json");
+    scene.save(&path).expect("saves");
+    assert_eq!(std::fs::read_to_string(&path).expect("reads"), json);
+
+    let bad = json.replacen("\"chairs\"", "\"chair\"", 1);
+    let msg = Scene::from_json_str(&bad, "bad.json")
+        .expect_err("an unknown field is refused")
+        .to_string();
+    assert!(msg.contains("bad.json") && msg.contains("chair"), "{msg}");
+
+    let robot = RobotConfig::default();
+    let json = robot.to_json_string().expect("serialises");
+    let back = RobotConfig::from_json_str(&json, "r.json").expect("parses");
+    assert_eq!(
+        back.to_toml_string().expect("serialises"),
+        robot.to_toml_string().expect("serialises")
+    );
+    let msg = RobotConfig::from_json_str("{\"format_version\": 999}", "old.json")
+        .expect_err("a future version is refused")
+        .to_string();
+    assert!(msg.contains("old.json") && msg.contains("999"), "{msg}");
+}
+
 #[test]
 fn default_robot_file_equals_default() {
     let loaded = RobotConfig::load(data_dir().join("robot.toml")).expect("robot.toml loads");

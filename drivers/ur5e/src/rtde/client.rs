@@ -4,11 +4,13 @@
 //! per cycle and the controller's 500 Hz stream is its clock. Buffers are allocated when the
 //! client and its recipes are set up; the steady-state receive and send paths reuse them.
 
-use std::io::{self, Read, Write};
-use std::net::{SocketAddr, TcpStream, ToSocketAddrs};
+use std::io;
+use std::net::{SocketAddr, ToSocketAddrs};
 use std::time::{Duration, Instant};
 
 use thiserror::Error;
+
+use crate::transport::{TcpTransport, Transport};
 
 use super::wire::{
     self, ControllerVersion, FrameError, HEADER_LEN, PackageType, RtdeType, RtdeValue, SetupField,
@@ -404,10 +406,11 @@ pub enum RtdeState {
     Started,
 }
 
-/// An RTDE (port 30004) client speaking protocol version 2.
+/// An RTDE (port 30004) client speaking protocol version 2, over TCP unless built on another
+/// [`Transport`] with [`RtdeClient::over`].
 #[derive(Debug)]
-pub struct RtdeClient {
-    stream: TcpStream,
+pub struct RtdeClient<T = TcpTransport> {
+    stream: T,
     addr: SocketAddr,
     timeouts: RtdeTimeouts,
     rx: Box<[u8]>,
@@ -424,7 +427,7 @@ pub struct RtdeClient {
     reconnects: u64,
 }
 
-impl RtdeClient {
+impl RtdeClient<TcpTransport> {
     /// Connects to `addr`, negotiates protocol version 2 and returns a paused client.
     pub fn connect(
         addr: impl ToSocketAddrs,
@@ -437,7 +440,17 @@ impl RtdeClient {
             .ok_or_else(|| {
                 RtdeConnectError::Resolve(io::Error::new(io::ErrorKind::NotFound, "no address"))
             })?;
-        let stream = Self::open(addr, &timeouts)?;
+        let stream = TcpTransport::connect(addr, timeouts.connect, timeouts.write)
+            .map_err(|source| RtdeLinkError::Io { addr, source })?;
+        Self::over(stream, timeouts)
+    }
+}
+
+impl<T: Transport> RtdeClient<T> {
+    /// Negotiates protocol version 2 over an open `stream` and returns a paused client;
+    /// `timeouts.reply` bounds every reply (the others are the transport's business).
+    pub fn over(stream: T, timeouts: RtdeTimeouts) -> Result<Self, RtdeConnectError> {
+        let addr = stream.peer();
         let mut client = Self {
             stream,
             addr,
@@ -457,17 +470,6 @@ impl RtdeClient {
         };
         client.negotiate()?;
         Ok(client)
-    }
-
-    fn open(addr: SocketAddr, timeouts: &RtdeTimeouts) -> Result<TcpStream, RtdeLinkError> {
-        let io_err = |source| RtdeLinkError::Io { addr, source };
-        let stream = TcpStream::connect_timeout(&addr, timeouts.connect).map_err(io_err)?;
-        // Small packages at 500 Hz: Nagle would batch them and add latency.
-        stream.set_nodelay(true).map_err(io_err)?;
-        stream
-            .set_write_timeout(Some(timeouts.write))
-            .map_err(io_err)?;
-        Ok(stream)
     }
 
     /// Asks for protocol version 2 (`V`).
@@ -500,7 +502,7 @@ impl RtdeClient {
     /// arm stopped, never from a control cycle. When every attempt fails the client is left
     /// as before the call (same recipes and state, link down), so it can be called again.
     pub fn reconnect(&mut self, policy: &RtdeReconnectPolicy) -> Result<(), RtdeReconnectError> {
-        let _ = self.stream.shutdown(std::net::Shutdown::Both);
+        self.stream.shutdown();
         let attempts = policy.attempts.max(1);
         let mut backoff = policy.first_backoff;
         let mut attempt = 1;
@@ -554,7 +556,10 @@ impl RtdeClient {
         inputs: &[InputRecipe],
         state: RtdeState,
     ) -> Result<(), RtdeReconnectCause> {
-        self.stream = Self::open(self.addr, &self.timeouts).map_err(RtdeConnectError::from)?;
+        let addr = self.addr;
+        self.stream
+            .reopen()
+            .map_err(|source| RtdeConnectError::from(RtdeLinkError::Io { addr, source }))?;
         self.rx_start = 0;
         self.rx_end = 0;
         self.state = RtdeState::Paused;
@@ -1076,7 +1081,7 @@ impl RtdeClient {
                 return Err(RtdeLinkError::Timeout { addr, what, waited });
             }
             self.stream
-                .set_read_timeout(Some(left))
+                .set_read_timeout(left)
                 .map_err(|source| RtdeLinkError::Io { addr, source })?;
             match self.stream.read(&mut self.rx[self.rx_end..]) {
                 Ok(0) => return Err(RtdeLinkError::Closed { addr }),
@@ -1125,6 +1130,6 @@ impl RtdeClient {
         if self.state == RtdeState::Started {
             let _ = self.pause();
         }
-        let _ = self.stream.shutdown(std::net::Shutdown::Both);
+        self.stream.shutdown();
     }
 }
