@@ -178,11 +178,8 @@ pub(crate) fn canned_rtde_handshake() -> Vec<u8> {
 /// and pause. A good handshake must succeed whatever follows it; a received package always
 /// has the recipe's types, and its sequence number grows by the packages it replaced plus one.
 pub fn rtde_client(data: &[u8]) {
-    let mut b = Bytes::new(data);
-    let mode = b.u8();
-    let canned = mode & 1 == 1;
-    let latest = mode & 2 == 2;
-    let stream = controller_bytes(canned, b.rest());
+    let (mode, stream) = controller_bytes(data);
+    let (canned, latest) = (mode & 1 == 1, mode & 2 == 2);
     let server = OneShotServer::serve(stream);
     let timeouts = RtdeTimeouts {
         connect: Duration::from_secs(2),
@@ -199,11 +196,8 @@ pub fn rtde_client(data: &[u8]) {
 /// As [`rtde_client`], in memory: the controller's bytes arrive at most `mode >> 2` bytes a read
 /// (0: all that fit), and every write must be one whole package.
 pub fn rtde_stream(data: &[u8]) {
-    let mut b = Bytes::new(data);
-    let mode = b.u8();
-    let canned = mode & 1 == 1;
-    let latest = mode & 2 == 2;
-    let stream = controller_bytes(canned, b.rest());
+    let (mode, stream) = controller_bytes(data);
+    let (canned, latest) = (mode & 1 == 1, mode & 2 == 2);
     let transport = ScriptedStream::new(&stream, usize::from(mode >> 2));
     match RtdeClient::over(transport, RtdeTimeouts::default()) {
         Ok(client) => rtde_session(client, canned, latest),
@@ -211,15 +205,18 @@ pub fn rtde_stream(data: &[u8]) {
     }
 }
 
-/// What the controller sends: the replies of a good handshake when `canned`, then `rest`.
-fn controller_bytes(canned: bool, rest: &[u8]) -> Vec<u8> {
-    let mut stream = if canned {
+/// The input's mode byte and what the controller sends: the replies of a good handshake when bit
+/// 0 of the mode is set, then the rest of the input.
+fn controller_bytes(data: &[u8]) -> (u8, Vec<u8>) {
+    let mut b = Bytes::new(data);
+    let mode = b.u8();
+    let mut stream = if mode & 1 == 1 {
         canned_rtde_handshake()
     } else {
         Vec::new()
     };
-    stream.extend_from_slice(rest);
-    stream
+    stream.extend_from_slice(b.rest());
+    (mode, stream)
 }
 
 /// Version, both recipes, start, up to 16 receives, an input package and pause, on a connected

@@ -1,6 +1,21 @@
 //! Files an operator hands the robot (`runtime/world`): scene and robot files, as text.
 
+use std::borrow::Cow;
+
 use world::{RobotConfig, Scene};
+
+/// The input's text and whether it is JSON (first byte odd) or TOML (even). JSON that is not
+/// UTF-8 is `None`: `load` refuses it on reading. TOML is read lossily.
+fn file_text(data: &[u8]) -> Option<(bool, Cow<'_, str>)> {
+    let (&mode, text) = data.split_first()?;
+    if mode % 2 == 1 {
+        std::str::from_utf8(text)
+            .ok()
+            .map(|t| (true, Cow::Borrowed(t)))
+    } else {
+        Some((false, String::from_utf8_lossy(text)))
+    }
+}
 
 /// A scene file, in memory: TOML text through `Scene::from_toml_str` (first byte even) or JSON
 /// text through `Scene::from_json_str` (odd; a file that is not UTF-8 is refused on reading, as
@@ -8,17 +23,13 @@ use world::{RobotConfig, Scene};
 /// JSON for JSON input) it is the same scene. In memory, so that a run costs the parsers and
 /// not a temporary file: `Scene::load` is this plus `read_to_string` by the extension.
 pub fn scene_file(data: &[u8]) {
-    let Some((&mode, text)) = data.split_first() else {
+    let Some((json, text)) = file_text(data) else {
         return;
     };
-    let json = mode % 2 == 1;
     let loaded = if json {
-        let Ok(text) = std::str::from_utf8(text) else {
-            return;
-        };
-        Scene::from_json_str(text, "fuzz.json")
+        Scene::from_json_str(&text, "fuzz.json")
     } else {
-        Scene::from_toml_str(&String::from_utf8_lossy(text), "fuzz.toml")
+        Scene::from_toml_str(&text, "fuzz.toml")
     };
     let scene = match loaded {
         Ok(scene) => scene,
@@ -51,17 +62,13 @@ pub fn scene_file(data: &[u8]) {
 /// A robot file, as [`scene_file`]: valid once loaded, and writes the same TOML after a write
 /// and a parse (JSON input also through JSON).
 pub fn robot_file(data: &[u8]) {
-    let Some((&mode, text)) = data.split_first() else {
+    let Some((json, text)) = file_text(data) else {
         return;
     };
-    let json = mode % 2 == 1;
     let loaded = if json {
-        let Ok(text) = std::str::from_utf8(text) else {
-            return;
-        };
-        RobotConfig::from_json_str(text, "fuzz.json")
+        RobotConfig::from_json_str(&text, "fuzz.json")
     } else {
-        RobotConfig::from_toml_str(&String::from_utf8_lossy(text), "fuzz.toml")
+        RobotConfig::from_toml_str(&text, "fuzz.toml")
     };
     let robot = match loaded {
         Ok(robot) => robot,

@@ -210,15 +210,18 @@ impl RobotConfig {
             .map_err(|failure| RobotError::from_failure(failure, path))
     }
 
+    fn parse_str(
+        text: &str,
+        encoding: FileEncoding,
+        origin: &Path,
+    ) -> Result<RobotConfig, RobotError> {
+        file::parse(text, encoding, ROBOT_FORMAT_VERSION, RobotConfig::validate)
+            .map_err(|failure| RobotError::from_failure(failure, origin))
+    }
+
     /// Parses and validates robot text in JSON; `origin` names the source in errors.
     pub fn from_json_str(text: &str, origin: impl AsRef<Path>) -> Result<RobotConfig, RobotError> {
-        file::parse(
-            text,
-            FileEncoding::Json,
-            ROBOT_FORMAT_VERSION,
-            RobotConfig::validate,
-        )
-        .map_err(|failure| RobotError::from_failure(failure, origin.as_ref()))
+        Self::parse_str(text, FileEncoding::Json, origin.as_ref())
     }
 
     /// The configuration as JSON text (as [`Self::save`] writes a `.json` file).
@@ -231,13 +234,7 @@ impl RobotConfig {
 
     /// Parses and validates robot text in TOML; `origin` names the source in errors.
     pub fn from_toml_str(text: &str, origin: impl AsRef<Path>) -> Result<RobotConfig, RobotError> {
-        file::parse(
-            text,
-            FileEncoding::Toml,
-            ROBOT_FORMAT_VERSION,
-            RobotConfig::validate,
-        )
-        .map_err(|failure| RobotError::from_failure(failure, origin.as_ref()))
+        Self::parse_str(text, FileEncoding::Toml, origin.as_ref())
     }
 
     /// The configuration as TOML text.

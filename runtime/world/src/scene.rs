@@ -477,15 +477,14 @@ impl Scene {
             .map_err(|failure| SceneError::from_failure(failure, path))
     }
 
+    fn parse_str(text: &str, encoding: FileEncoding, origin: &Path) -> Result<Scene, SceneError> {
+        file::parse(text, encoding, SCENE_FORMAT_VERSION, Scene::validate)
+            .map_err(|failure| SceneError::from_failure(failure, origin))
+    }
+
     /// Parses and validates scene text in JSON; `origin` names the source in errors.
     pub fn from_json_str(text: &str, origin: impl AsRef<Path>) -> Result<Scene, SceneError> {
-        file::parse(
-            text,
-            FileEncoding::Json,
-            SCENE_FORMAT_VERSION,
-            Scene::validate,
-        )
-        .map_err(|failure| SceneError::from_failure(failure, origin.as_ref()))
+        Self::parse_str(text, FileEncoding::Json, origin.as_ref())
     }
 
     /// The scene as JSON text (as [`Self::save`] writes a `.json` file).
@@ -498,13 +497,7 @@ impl Scene {
 
     /// Parses and validates scene text in TOML; `origin` names the source in errors.
     pub fn from_toml_str(text: &str, origin: impl AsRef<Path>) -> Result<Scene, SceneError> {
-        file::parse(
-            text,
-            FileEncoding::Toml,
-            SCENE_FORMAT_VERSION,
-            Scene::validate,
-        )
-        .map_err(|failure| SceneError::from_failure(failure, origin.as_ref()))
+        Self::parse_str(text, FileEncoding::Toml, origin.as_ref())
     }
 
     /// The scene as TOML text.
