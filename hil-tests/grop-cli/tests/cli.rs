@@ -314,6 +314,10 @@ fn bench_writes_under_out_and_regenerates_the_doc_only_with_write_docs() {
     assert!(o.status.success(), "{}", text(&o));
     let doc = std::fs::read_to_string(dir.path().join("docs/planner-bench.md")).unwrap();
     assert!(doc.contains("bench --write-docs"), "{doc}");
+    // The decision both between the other cases and back to back, and the verdict on both.
+    assert!(doc.contains("| grop-3 |"), "{doc}");
+    assert!(doc.contains("| grop-3/back-to-back |"), "{doc}");
+    assert!(doc.contains("Back to back (`grop-3/back-to-back`"), "{doc}");
 }
 
 #[test]

@@ -371,7 +371,7 @@ impl Geometry {
                     let dst = &mut buf[base + offset..];
                     let src = &row[first.min(self.w)..];
                     match sw {
-                        2 => copy_phase::<2>(dst, src),
+                        2 => copy_phase2(dst, src),
                         _ => {
                             for (d, &v) in dst.iter_mut().zip(src.iter().step_by(sw)) {
                                 *d = v;
@@ -397,6 +397,48 @@ fn copy_phase<const S: usize>(dst: &mut [f32], src: &[f32]) {
     if let (Some(&v), Some(d)) = (tail, dst.get_mut(written)) {
         *d = v;
     }
+}
+
+/// [`copy_phase`] for stride 2, the stride of every strided convolution of ours: with AVX2, 16
+/// floats at a time split into their even lanes by two shuffles (the scalar copy was a tenth of
+/// the operator's time on `enc2`). The same floats, moved.
+fn copy_phase2(dst: &mut [f32], src: &[f32]) {
+    #[cfg(target_arch = "x86_64")]
+    if simd_available() {
+        // SAFETY: AVX2 is present (checked at run time); the function checks its own bounds.
+        unsafe { copy_phase2_avx2(dst, src) };
+        return;
+    }
+    copy_phase::<2>(dst, src);
+}
+
+/// [`copy_phase2`] with AVX2.
+///
+/// # Safety
+/// The CPU must support AVX2.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn copy_phase2_avx2(dst: &mut [f32], src: &[f32]) {
+    use std::arch::x86_64::*;
+    // As many outputs as `copy_phase` writes.
+    let n = dst.len().min(src.len().div_ceil(2));
+    let mut k = 0;
+    while k + LANES <= n && 2 * k + 2 * LANES <= src.len() {
+        // SAFETY: the 16 floats read and the 8 written are in bounds by the loop condition.
+        unsafe {
+            let a = _mm256_loadu_ps(src.as_ptr().add(2 * k));
+            let b = _mm256_loadu_ps(src.as_ptr().add(2 * k + LANES));
+            // Per 128-bit lane: a0 a2 b0 b2 | a4 a6 b4 b6; then the 64-bit pairs reordered
+            // 0, 2, 1, 3: s0 s2 s4 s6 s8 s10 s12 s14.
+            let even = _mm256_shuffle_ps::<0b10_00_10_00>(a, b);
+            let even = _mm256_castpd_ps(_mm256_permute4x64_pd::<0b11_01_10_00>(_mm256_castps_pd(
+                even,
+            )));
+            _mm256_storeu_ps(dst.as_mut_ptr().add(k), even);
+        }
+        k += LANES;
+    }
+    copy_phase::<2>(&mut dst[k..n], &src[2 * k..]);
 }
 
 /// `vectors` output vectors in register blocks of [`NV`], balanced (4 vectors as 2 + 2, not
@@ -1125,6 +1167,29 @@ mod tests {
     /// at strides 1 and 2 with padding, 1x1, with the bias, an added map, ReLU and
     /// depth-to-space fused, rows that end inside a vector, odd and even vector counts, a batch.
     /// (They differ only by fused versus separate multiply-add rounding.)
+    #[test]
+    fn stride_two_phase_split_equals_the_scalar_copy() {
+        // Source lengths around the 16-float step, odd and even; destinations shorter, equal
+        // and longer than what the source fills.
+        for src_len in [0usize, 1, 2, 7, 15, 16, 17, 31, 32, 33, 63, 64, 65] {
+            let src = values(src_len, src_len as u64);
+            for dst_len in [0usize, 3, 8, src_len / 2, src_len.div_ceil(2), src_len + 9] {
+                let mut fast = vec![f32::NAN; dst_len];
+                let mut plain = vec![f32::NAN; dst_len];
+                copy_phase2(&mut fast, &src);
+                copy_phase::<2>(&mut plain, &src);
+                let same = fast
+                    .iter()
+                    .zip(&plain)
+                    .all(|(a, b)| a.to_bits() == b.to_bits());
+                assert!(same, "src {src_len}, dst {dst_len}: {fast:?} vs {plain:?}");
+                for (k, &v) in fast.iter().enumerate().take(src_len.div_ceil(2)) {
+                    assert_eq!(v.to_bits(), src[2 * k].to_bits(), "src {src_len}, lane {k}");
+                }
+            }
+        }
+    }
+
     #[test]
     fn plain_path_equals_the_simd_path() {
         // (in_c, out_c, kernel, stride, pad, h, w, add, relu, shuffle)
