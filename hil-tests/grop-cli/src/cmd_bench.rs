@@ -251,38 +251,18 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 
     let mut crops = vec![[0u8; 2048]; 6];
     let mut heatmaps = vec![world::Heatmap::zeros(); 6];
-    if let Some(n) = args.decision_only {
-        let mut samples = Samples::new("grop-3", "");
-        let inputs = (
-            scenes.as_slice(),
-            &robot,
-            frames.as_slice(),
-            grids.as_slice(),
-        );
-        decisions_back_to_back(
-            inputs,
-            cfg,
-            (&mut fcn, &mut crops, &mut heatmaps),
-            n,
-            0,
-            &mut samples,
-        )?;
-        println!(
-            "grop-3 decision: p50 {:.3} ms, p99 {:.3} ms (n = {n})",
-            samples.pct(0.5),
-            samples.pct(0.99)
-        );
-        return Ok(());
-    }
-
-    // The same decisions back to back with nothing between them (what `--decision-only`
-    // times): the caches keep the model, its buffers and the frame's rows, as on a core given
-    // to the planner. The `grop-3` row below runs each decision between the other cases, so
-    // its caches are cold: the two side by side show what that costs.
+    // The same decisions back to back with nothing between them: the caches keep the model,
+    // its buffers and the frame's rows, as on a core given to the planner. The `grop-3` row
+    // below runs each decision between the other cases, so its caches are cold: the two side
+    // by side show what that costs. `--decision-only` runs this loop alone (for a profiler).
     let mut warm3 = Samples::new(
         "grop-3/back-to-back",
         "the `grop-3` decision timed in a loop of its own, nothing else between decisions (warm caches)",
     );
+    let (n, skip) = match args.decision_only {
+        Some(n) => (n, 0),
+        None => (total, warmup),
+    };
     let inputs = (
         scenes.as_slice(),
         &robot,
@@ -293,10 +273,18 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         inputs,
         cfg,
         (&mut fcn, &mut crops, &mut heatmaps),
-        total,
-        warmup,
+        n,
+        skip,
         &mut warm3,
     )?;
+    if args.decision_only.is_some() {
+        println!(
+            "grop-3 decision: p50 {:.3} ms, p99 {:.3} ms (n = {n})",
+            warm3.pct(0.5),
+            warm3.pct(0.99)
+        );
+        return Ok(());
+    }
 
     let mut full3 = Samples::new(
         "grop-3",
