@@ -400,8 +400,9 @@ fn copy_phase<const S: usize>(dst: &mut [f32], src: &[f32]) {
 }
 
 /// [`copy_phase`] for stride 2, the stride of every strided convolution of ours: with AVX2, 16
-/// floats at a time split into their even lanes by two shuffles (the scalar copy was a tenth of
-/// the operator's time on `enc2`). The same floats, moved.
+/// floats at a time split into their even lanes by two shuffles (the scalar copy, one float at a
+/// time, held the hottest lines of `run_with`'s own time in `perf annotate`). The same floats,
+/// moved.
 fn copy_phase2(dst: &mut [f32], src: &[f32]) {
     #[cfg(target_arch = "x86_64")]
     if simd_available() {
@@ -1162,11 +1163,6 @@ mod tests {
             .collect()
     }
 
-    /// The plain-Rust path (what a robot computer without AVX2 + FMA runs, an ARM board among
-    /// them) gives what the AVX2 path gives on every kind of convolution the network has: 3x3
-    /// at strides 1 and 2 with padding, 1x1, with the bias, an added map, ReLU and
-    /// depth-to-space fused, rows that end inside a vector, odd and even vector counts, a batch.
-    /// (They differ only by fused versus separate multiply-add rounding.)
     #[test]
     fn stride_two_phase_split_equals_the_scalar_copy() {
         // Source lengths around the 16-float step, odd and even; destinations shorter, equal
@@ -1190,6 +1186,11 @@ mod tests {
         }
     }
 
+    /// The plain-Rust path (what a robot computer without AVX2 + FMA runs, an ARM board among
+    /// them) gives what the AVX2 path gives on every kind of convolution the network has: 3x3
+    /// at strides 1 and 2 with padding, 1x1, with the bias, an added map, ReLU and
+    /// depth-to-space fused, rows that end inside a vector, odd and even vector counts, a batch.
+    /// (They differ only by fused versus separate multiply-add rounding.)
     #[test]
     fn plain_path_equals_the_simd_path() {
         // (in_c, out_c, kernel, stride, pad, h, w, add, relu, shuffle)
