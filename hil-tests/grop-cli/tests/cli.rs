@@ -318,6 +318,11 @@ fn bench_writes_under_out_and_regenerates_the_doc_only_with_write_docs() {
     assert!(doc.contains("| grop-3 |"), "{doc}");
     assert!(doc.contains("| grop-3/back-to-back |"), "{doc}");
     assert!(doc.contains("Back to back (`grop-3/back-to-back`"), "{doc}");
+    assert!(doc.contains("| grop-3/whole-heatmaps |"), "{doc}");
+    assert!(
+        doc.contains("with whole heatmaps (`grop-3/whole-heatmaps`"),
+        "{doc}"
+    );
 }
 
 #[test]

@@ -54,10 +54,19 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             .predict_batch(&crops, &mut six)
             .expect("predict_batch")
     });
+    // The planner's candidate cells only (world::view::CANDIDATE_ROWS x CANDIDATE_COLS).
+    let (p50_w, p99_w, mean_w) = measure(iters / 2, || {
+        model
+            .predict_batch_window(&crops, &mut six, 9..17, 20..44)
+            .expect("predict_batch_window")
+    });
     println!(
         "{{\"runtime\": \"tract\", \"convolutions\": \"{backend:?}\", \"threads\": 1, \"iterations\": {iters}, \"load_ms\": {load_ms:.1}, \
          \"batch1\": {{\"p50_us\": {p50_1:.2}, \"p99_us\": {p99_1:.2}, \"mean_us\": {mean_1:.2}}}, \
-         \"batch6\": {{\"p50_us\": {p50_6:.2}, \"p99_us\": {p99_6:.2}, \"mean_us\": {mean_6:.2}}}}}"
+         \"batch6\": {{\"p50_us\": {p50_6:.2}, \"p99_us\": {p99_6:.2}, \"mean_us\": {mean_6:.2}}}, \
+         \"batch6_candidates\": {{\"p50_us\": {p50_w:.2}, \"p99_us\": {p99_w:.2}, \"mean_us\": {mean_w:.2}}}, \
+         \"decoder_over_windows\": {}}}",
+        model.decodes_windows()
     );
     Ok(())
 }

@@ -1025,7 +1025,7 @@ fn plan_replacement(
 /// in CRD order (PyTorch's PixelShuffle(2)). tract's ONNX import writes DepthToSpace as such a
 /// chain of reshapes and axis moves; which order it encodes is checked here by running the
 /// chain on a tensor of indices, not by reading its ops.
-fn depth_to_space_chain(
+pub(crate) fn depth_to_space_chain(
     model: &TypedModel,
     id: usize,
     c: usize,
@@ -1087,7 +1087,7 @@ fn depth_to_space_chain(
 
 /// The value of a wire that is a constant, or a cast of one (ONNX import casts biases; tract
 /// folds those casts only while decluttering, after our rewrite).
-fn constant(model: &TypedModel, outlet: OutletId) -> TractResult<Option<Arc<Tensor>>> {
+pub(crate) fn constant(model: &TypedModel, outlet: OutletId) -> TractResult<Option<Arc<Tensor>>> {
     if let Some(konst) = &model.outlet_fact(outlet)?.konst {
         return Ok(Some(konst.clone()));
     }

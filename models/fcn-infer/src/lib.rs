@@ -8,7 +8,16 @@
 //! buffers. The network's convolutions run as our own tract operator,
 //! [`direct_conv::DirectConv`], swapped into the graph after loading (the file and its weights
 //! are unchanged; tract's own lowering, Pad + im2col + small matrix products, measured ~2x slower
-//! on this network, docs/fcn.md); [`ConvBackend::Tract`] keeps tract's, for reference. The uint8
+//! on this network, docs/fcn.md); [`ConvBackend::Tract`] keeps tract's, for reference.
+//!
+//! When the network ends in Psi's pointwise FCN-8s decoder (found by its structure, then checked
+//! against the whole network on fixed crops at load time), tract runs the encoder and the
+//! decoder runs as our own code over the cells asked for: [`FcnModel::predict_batch_window`]
+//! computes only a window of each heatmap (the planner's 192 candidate cells take about a
+//! quarter less of Psi's time than whole heatmaps), with the same values, bit for bit, as whole
+//! heatmaps. Models with another decoder run whole and have the window cut from the output.
+//!
+//! The uint8
 //! -> float normalisation is part of the ONNX graph, so callers pass the crop exactly as
 //! `world::view::render_crop` returns it.
 //!
@@ -26,12 +35,14 @@
 //! 180 degrees before inference and the prediction rotated back; [`overhead`] does both on the
 //! 64 x 64 camera image, so a heatmap cell can be placed in the world frame (docs/architecture.md).
 
+use std::ops::Range;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use tract_onnx::prelude::*;
 use tract_onnx::tract_hir::infer::Factoid;
 
+mod decoder;
 pub mod direct_conv;
 pub mod overhead;
 mod record;
@@ -165,6 +176,14 @@ pub enum InferError {
         /// Output buffers given.
         outputs: usize,
     },
+    /// A heatmap window that is empty or reaches outside the 32 x 64 crop.
+    #[error("heatmap window rows {rows:?} x columns {cols:?} is empty or outside the 32 x 64 crop")]
+    Window {
+        /// The rows asked for.
+        rows: Range<usize>,
+        /// The columns asked for.
+        cols: Range<usize>,
+    },
     /// tract failed while running the plan.
     #[error("tract inference failed: {0}")]
     Runtime(String),
@@ -186,6 +205,10 @@ pub struct FcnModel {
     path: PathBuf,
     /// One plan per batch size: `plans[b - 1]` runs `b` crops.
     plans: Vec<Plan>,
+    /// Psi's decoder, when it was recognised (and checked against the whole network): the plans
+    /// then run the encoder only, their outputs are its three stages, and this computes the
+    /// heatmap cells asked for ([`FcnModel::predict_batch_window`]).
+    decoder: Option<decoder::Decoder>,
 }
 
 /// A fixed-batch plan, its session state and the input tensor we refill in place.
@@ -274,14 +297,93 @@ impl FcnModel {
             ConvBackend::Direct => MAX_BATCH,
             ConvBackend::Tract => 1,
         };
-        let plans = (1..=batches)
-            .map(|batch| prepare(&model, batch, &path, backend))
-            .collect::<Result<Vec<_>, _>>()?;
+        let full = |path: &Path| {
+            (1..=batches)
+                .map(|batch| prepare(&model, batch, path, backend))
+                .collect::<Result<Vec<_>, _>>()
+        };
+        let mut fcn = match backend {
+            ConvBackend::Direct => match prepare_split(&model, &path) {
+                Some((plans, decoder)) => FcnModel {
+                    path: path.clone(),
+                    plans,
+                    decoder: Some(decoder),
+                },
+                None => FcnModel {
+                    plans: full(&path)?,
+                    path: path.clone(),
+                    decoder: None,
+                },
+            },
+            ConvBackend::Tract => FcnModel {
+                plans: full(&path)?,
+                path: path.clone(),
+                decoder: None,
+            },
+        };
+        if fcn.decoder.is_some() {
+            // The decoder found by its structure must compute what the whole network does: on
+            // a few fixed crops, against the network's own plan, before it is used.
+            let mut reference = FcnModel {
+                path: path.clone(),
+                plans: vec![prepare(&model, 1, &path, backend)?],
+                decoder: None,
+            };
+            match fcn.agrees_with(&mut reference) {
+                Ok(()) => {}
+                Err(why) => {
+                    log::warn!(
+                        "FCN model {}: its decoder does not run on its own ({why}); heatmaps come from the whole network",
+                        path.display()
+                    );
+                    fcn.plans = full(&path)?;
+                    fcn.decoder = None;
+                }
+            }
+        }
         log::info!(
-            "loaded FCN model {} ({backend:?} convolutions)",
-            path.display()
+            "loaded FCN model {} ({backend:?} convolutions{})",
+            path.display(),
+            if fcn.decoder.is_some() {
+                ", decoder over windows"
+            } else {
+                ""
+            }
         );
-        Ok(FcnModel { path, plans })
+        Ok(fcn)
+    }
+
+    /// Whether heatmap cells outside a window cost nothing: the model's decoder was recognised
+    /// and runs on its own over the cells asked for ([`FcnModel::predict_batch_window`]).
+    /// Otherwise the whole network runs and the window is cut from its output.
+    pub fn decodes_windows(&self) -> bool {
+        self.decoder.is_some()
+    }
+
+    /// Compares every cell of a few fixed crops with `reference` (the whole network's plan):
+    /// within [`DECODER_TOLERANCE`], else why not.
+    fn agrees_with(&mut self, reference: &mut FcnModel) -> Result<(), String> {
+        let crops = pattern_crops(3);
+        let mut ours = vec![[0.0f32; CROP_CELLS]; crops.len()];
+        self.predict_batch(&crops, &mut ours)
+            .map_err(|e| e.to_string())?;
+        for (k, (crop, ours)) in crops.iter().zip(&ours).enumerate() {
+            let mut want = [0.0f32; CROP_CELLS];
+            reference
+                .predict(crop, &mut want)
+                .map_err(|e| e.to_string())?;
+            if let Some((cell, (a, b))) = ours
+                .iter()
+                .zip(want.iter())
+                .enumerate()
+                .find(|(_, (a, b))| (*a - *b).abs().is_nan() || (*a - *b).abs() > DECODER_TOLERANCE)
+            {
+                return Err(format!(
+                    "crop {k}, cell {cell}: {a} against the network's {b}"
+                ));
+            }
+        }
+        Ok(())
     }
 
     /// The file the model came from.
@@ -291,7 +393,7 @@ impl FcnModel {
 
     /// Psi for one crop: `out[row * 64 + col]` is the success probability of that cell.
     pub fn predict(&mut self, crop: &Crop, out: &mut HeatmapCells) -> Result<(), InferError> {
-        self.run(std::slice::from_ref(crop), std::slice::from_mut(out))
+        self.predict_batch(std::slice::from_ref(crop), std::slice::from_mut(out))
     }
 
     /// Psi for up to [`MAX_BATCH`] crops in one call (e.g. both sides of three targets), run as
@@ -301,6 +403,24 @@ impl FcnModel {
         crops: &[Crop],
         out: &mut [HeatmapCells],
     ) -> Result<(), InferError> {
+        self.predict_batch_window(crops, out, 0..CROP_ROWS, 0..CROP_COLS)
+    }
+
+    /// [`FcnModel::predict_batch`] for the cells of `rows` x `cols` only (for example the
+    /// planner's candidate cells, `world::view::CANDIDATE_ROWS` x `CANDIDATE_COLS`): those cells
+    /// get the values a whole heatmap would have, every other cell is set to 0. With a
+    /// recognised decoder ([`FcnModel::decodes_windows`]) the decoder runs only over the window;
+    /// the encoder always runs whole.
+    pub fn predict_batch_window(
+        &mut self,
+        crops: &[Crop],
+        out: &mut [HeatmapCells],
+        rows: Range<usize>,
+        cols: Range<usize>,
+    ) -> Result<(), InferError> {
+        if rows.is_empty() || cols.is_empty() || rows.end > CROP_ROWS || cols.end > CROP_COLS {
+            return Err(InferError::Window { rows, cols });
+        }
         if crops.is_empty() || crops.len() > MAX_BATCH {
             return Err(InferError::BatchSize(crops.len()));
         }
@@ -310,16 +430,18 @@ impl FcnModel {
                 outputs: out.len(),
             });
         }
-        self.run(crops, out)
-    }
-
-    fn run(&mut self, crops: &[Crop], out: &mut [HeatmapCells]) -> Result<(), InferError> {
+        let window = (rows, cols);
         if crops.len() <= self.plans.len() {
-            return self.run_plan(crops, out, 0);
+            return self.run_plan(crops, out, 0, &window);
         }
         // Only the one-crop plan (tract's own convolutions): one run per crop.
         for (i, (crop, heat)) in crops.iter().zip(out.iter_mut()).enumerate() {
-            self.run_plan(std::slice::from_ref(crop), std::slice::from_mut(heat), i)?;
+            self.run_plan(
+                std::slice::from_ref(crop),
+                std::slice::from_mut(heat),
+                i,
+                &window,
+            )?;
         }
         Ok(())
     }
@@ -331,6 +453,7 @@ impl FcnModel {
         crops: &[Crop],
         out: &mut [HeatmapCells],
         first: usize,
+        (rows, cols): &(Range<usize>, Range<usize>),
     ) -> Result<(), InferError> {
         let batch = crops.len();
         let plan = &mut self.plans[batch - 1];
@@ -351,37 +474,99 @@ impl FcnModel {
             .state
             .run(tvec!(TValue::from_const(plan.input.clone())))
             .map_err(runtime)?;
-        let heat = outputs
-            .first()
-            .ok_or_else(|| InferError::Runtime("model returned no output".into()))?
-            .try_as_plain_ram()
-            .map_err(runtime)?
-            .as_slice::<f32>()
-            .map_err(runtime)?;
-        if heat.len() != batch * CROP_CELLS {
-            return Err(InferError::Runtime(format!(
-                "output has {} values, expected {}",
-                heat.len(),
-                batch * CROP_CELLS
-            )));
+        let whole = rows.len() == CROP_ROWS && cols.len() == CROP_COLS;
+        if let Some(decoder) = &mut self.decoder {
+            let [c1, c2, c3] = decoder.stage_channels();
+            let mut stages: [&[f32]; 3] = [&[]; 3];
+            for (k, (stage, len)) in stages
+                .iter_mut()
+                .zip([
+                    c1 * CROP_CELLS / 4,
+                    c2 * CROP_CELLS / 16,
+                    c3 * CROP_CELLS / 64,
+                ])
+                .enumerate()
+            {
+                let values = outputs
+                    .get(k)
+                    .ok_or_else(|| InferError::Runtime(format!("encoder returned no stage {k}")))?
+                    .try_as_plain_ram()
+                    .map_err(runtime)?
+                    .as_slice::<f32>()
+                    .map_err(runtime)?;
+                if values.len() != batch * len {
+                    return Err(InferError::Runtime(format!(
+                        "encoder stage {k} has {} values, expected {}",
+                        values.len(),
+                        batch * len
+                    )));
+                }
+                *stage = values;
+            }
+            for (n, heat) in out.iter_mut().enumerate() {
+                let f = stages.map(|v| {
+                    let len = v.len() / batch;
+                    &v[n * len..(n + 1) * len]
+                });
+                if !whole {
+                    heat.fill(0.0);
+                }
+                decoder
+                    .decode(f, rows.clone(), cols.clone(), heat)
+                    .map_err(runtime)?;
+            }
+        } else {
+            let heat = outputs
+                .first()
+                .ok_or_else(|| InferError::Runtime("model returned no output".into()))?
+                .try_as_plain_ram()
+                .map_err(runtime)?
+                .as_slice::<f32>()
+                .map_err(runtime)?;
+            if heat.len() != batch * CROP_CELLS {
+                return Err(InferError::Runtime(format!(
+                    "output has {} values, expected {}",
+                    heat.len(),
+                    batch * CROP_CELLS
+                )));
+            }
+            for (dst, src) in out.iter_mut().zip(heat.chunks_exact(CROP_CELLS)) {
+                if whole {
+                    dst.copy_from_slice(src);
+                } else {
+                    dst.fill(0.0);
+                    for r in rows.clone() {
+                        let at = r * CROP_COLS;
+                        dst[at + cols.start..at + cols.end]
+                            .copy_from_slice(&src[at + cols.start..at + cols.end]);
+                    }
+                }
+            }
         }
-        if let Some((i, &value)) = heat
-            .iter()
-            .enumerate()
-            .find(|(_, v)| !(0.0..=1.0).contains(*v))
-        {
-            return Err(InferError::NotAProbability {
-                crop: first + i / CROP_CELLS,
-                cell: i % CROP_CELLS,
-                value,
-            });
-        }
-        for (dst, src) in out.iter_mut().zip(heat.chunks_exact(CROP_CELLS)) {
-            dst.copy_from_slice(src);
+        for (n, heat) in out.iter().enumerate().take(batch) {
+            for r in rows.clone() {
+                let at = r * CROP_COLS;
+                if let Some((c, &value)) = heat[at + cols.start..at + cols.end]
+                    .iter()
+                    .enumerate()
+                    .find(|(_, v)| !(0.0..=1.0).contains(*v))
+                {
+                    return Err(InferError::NotAProbability {
+                        crop: first + n,
+                        cell: at + cols.start + c,
+                        value,
+                    });
+                }
+            }
         }
         Ok(())
     }
 }
+
+/// Largest difference allowed between the decoder run on its own and the whole network, per
+/// cell, at load time (both are float32 sums of the same terms in another order; measured
+/// differences are around 1e-7).
+const DECODER_TOLERANCE: f32 = 1e-5;
 
 fn runtime(e: impl std::fmt::Display) -> InferError {
     InferError::Runtime(format!("{e:#}"))
@@ -432,6 +617,23 @@ fn check_declared_interface(model: &InferenceModel, path: &Path) -> Result<(), M
     Ok(())
 }
 
+/// The model typed with its input fixed to `[batch, 1, 32, 64]` u8.
+fn typed_for(
+    model: &InferenceModel,
+    batch: usize,
+    path: &Path,
+) -> Result<TypedModel, ModelLoadError> {
+    model
+        .clone()
+        .with_input_fact(0, u8::fact([batch, 1, CROP_ROWS, CROP_COLS]).into())
+        .and_then(|m| m.into_typed())
+        .map_err(|e| ModelLoadError::Prepare {
+            path: path.to_path_buf(),
+            batch,
+            reason: format!("{e:#}"),
+        })
+}
+
 /// Fixes the input to `[batch, 1, 32, 64]` u8, optimises, checks the output and plans.
 fn prepare(
     model: &InferenceModel,
@@ -439,35 +641,140 @@ fn prepare(
     path: &Path,
     backend: ConvBackend,
 ) -> Result<Plan, ModelLoadError> {
+    plan_typed(typed_for(model, batch, path)?, batch, path, backend, None)
+}
+
+/// One plan per batch size that runs the encoder only, and the decoder that turns its stages
+/// into heatmap cells, when the model's decoder is recognised ([`decoder::Decoder`]). `None`
+/// (the caller then plans the whole network) when it is not, or when the split plan cannot be
+/// made: that is logged, never an error, since the whole network may still load.
+fn prepare_split(model: &InferenceModel, path: &Path) -> Option<(Vec<Plan>, decoder::Decoder)> {
+    let mut plans = Vec::with_capacity(MAX_BATCH);
+    let mut found = None;
+    for batch in 1..=MAX_BATCH {
+        let split = typed_for(model, batch, path).and_then(|typed| {
+            let recognised =
+                decoder::Decoder::recognise(&typed).map_err(|e| ModelLoadError::Prepare {
+                    path: path.to_path_buf(),
+                    batch,
+                    reason: format!("{e:#}"),
+                })?;
+            let Some((decoder, stages)) = recognised else {
+                return Ok(None);
+            };
+            let shapes = stages_shapes(batch, decoder.stage_channels());
+            let plan = plan_typed(
+                typed,
+                batch,
+                path,
+                ConvBackend::Direct,
+                Some((stages, shapes)),
+            )?;
+            Ok(Some((plan, decoder)))
+        });
+        match split {
+            Ok(Some((plan, decoder))) => {
+                plans.push(plan);
+                found.get_or_insert(decoder);
+            }
+            Ok(None) => return None,
+            Err(e) => {
+                log::warn!("FCN model {}: decoder not split off: {e}", path.display());
+                return None;
+            }
+        }
+    }
+    found.map(|decoder| (plans, decoder))
+}
+
+/// The shapes of the three encoder stages (strides 2, 4, 8) for a batch.
+fn stages_shapes(batch: usize, channels: [usize; 3]) -> [[usize; 4]; 3] {
+    let [c1, c2, c3] = channels;
+    [
+        [batch, c1, CROP_ROWS / 2, CROP_COLS / 2],
+        [batch, c2, CROP_ROWS / 4, CROP_COLS / 4],
+        [batch, c3, CROP_ROWS / 8, CROP_COLS / 8],
+    ]
+}
+
+/// Optimises a typed model, checks its outputs and plans it. With `stages`, those outlets
+/// become the plan's outputs (the encoder's stages, of the shapes given) instead of the heatmap.
+fn plan_typed(
+    mut typed: TypedModel,
+    batch: usize,
+    path: &Path,
+    backend: ConvBackend,
+    stages: Option<([OutletId; 3], [[usize; 4]; 3])>,
+) -> Result<Plan, ModelLoadError> {
     let prep = |e: TractError| ModelLoadError::Prepare {
         path: path.to_path_buf(),
         batch,
         reason: format!("{e:#}"),
     };
     let shape = [batch, 1, CROP_ROWS, CROP_COLS];
-    let mut typed = model
-        .clone()
-        .with_input_fact(0, u8::fact(shape).into())
-        .and_then(|m| m.into_typed())
-        .map_err(prep)?;
+    if let Some((outlets, _)) = &stages {
+        typed.select_output_outlets(outlets).map_err(prep)?;
+    }
     if backend == ConvBackend::Direct {
         let summary = direct_conv::rewrite_convolutions(&mut typed).map_err(prep)?;
         log::debug!("batch {batch}: {summary:?}");
     }
     let typed = typed.into_optimized().map_err(prep)?;
-    let out_fact = typed.output_fact(0).map_err(prep)?;
-    let want: TVec<TDim> = shape.iter().map(|&d| d.to_dim()).collect();
-    if out_fact.datum_type != f32::datum_type() || out_fact.shape.to_tvec() != want {
-        return Err(ModelLoadError::WrongInterface {
-            path: path.to_path_buf(),
-            detail: format!(
-                "output {:?} {:?} for batch {batch}",
-                out_fact.datum_type, out_fact.shape
-            ),
-        });
+    let wanted: Vec<[usize; 4]> = match &stages {
+        Some((_, shapes)) => shapes.to_vec(),
+        None => vec![shape],
+    };
+    let outputs = typed.output_outlets().map_err(prep)?.len();
+    for (k, want) in wanted.iter().enumerate() {
+        let fact = typed.output_fact(k).map_err(prep)?;
+        let want: TVec<TDim> = want.iter().map(|&d| d.to_dim()).collect();
+        if outputs != wanted.len()
+            || fact.datum_type != f32::datum_type()
+            || fact.shape.to_tvec() != want
+        {
+            return Err(ModelLoadError::WrongInterface {
+                path: path.to_path_buf(),
+                detail: format!(
+                    "output {k} of {outputs}: {:?} {:?} for batch {batch}",
+                    fact.datum_type, fact.shape
+                ),
+            });
+        }
     }
     let runnable = typed.into_runnable().map_err(prep)?;
     let state = runnable.spawn().map_err(prep)?;
     let input = Arc::new(Tensor::zero::<u8>(&shape).map_err(prep)?);
     Ok(Plan { state, input })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The load-time check refuses a decoder that does not compute what the network does: one
+    /// output-bias value changed is found, and named by its cell.
+    #[test]
+    fn the_load_time_check_finds_a_decoder_that_differs_from_the_network() {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../psi-fcn.onnx");
+        let mut fcn = FcnModel::load(&path).expect("load");
+        let bytes = std::fs::read(&path).expect("read");
+        let model = tract_onnx::onnx()
+            .model_for_read(&mut &bytes[..])
+            .expect("parse");
+        let mut reference = FcnModel {
+            path: path.clone(),
+            plans: vec![prepare(&model, 1, &path, ConvBackend::Direct).expect("plan")],
+            decoder: None,
+        };
+        assert_eq!(fcn.agrees_with(&mut reference), Ok(()));
+        fcn.decoder
+            .as_mut()
+            .expect("the committed model's decoder is recognised")
+            .nudge_out_bias(12 * CROP_COLS + 30, 40.0);
+        let why = fcn.agrees_with(&mut reference).unwrap_err();
+        assert!(
+            why.contains(&format!("cell {}", 12 * CROP_COLS + 30)),
+            "{why}"
+        );
+    }
 }

@@ -198,3 +198,117 @@ fn committed_model_agrees_with_onnxruntime() {
         "tract and onnxruntime differ by {max_diff} (rerun make_golden.py after retraining)"
     );
 }
+
+/// Windows of every shape: one cell in each corner, a row, a column, the planner's candidate
+/// cells, odd borders that split the decoder's 2 x 2 / 4 x 4 / 8 x 8 blocks, the whole crop.
+const WINDOWS: [(std::ops::Range<usize>, std::ops::Range<usize>); 9] = [
+    (9..17, 20..44),
+    (0..32, 0..64),
+    (0..1, 0..1),
+    (31..32, 63..64),
+    (5..6, 0..64),
+    (0..32, 37..38),
+    (3..30, 7..58),
+    (1..2, 62..64),
+    (15..18, 29..36),
+];
+
+#[test]
+fn committed_model_decodes_windows() {
+    let model = FcnModel::load(&committed_model()).expect("load");
+    assert!(
+        model.decodes_windows(),
+        "the committed model's decoder was not recognised or failed its load-time check"
+    );
+}
+
+/// A window's cells are the whole heatmap's cells bit for bit (the same decoder code per
+/// cell), every other cell is 0, for every batch size.
+fn check_windows(path: &Path) {
+    let mut model = FcnModel::load(path).expect("load");
+    let crops: Vec<Crop> = (0..MAX_BATCH as u8)
+        .map(|k| patterned_crop(k * 3 + 1))
+        .collect();
+    for n in 1..=MAX_BATCH {
+        let mut whole = vec![[0.0f32; CROP_CELLS]; n];
+        model.predict_batch(&crops[..n], &mut whole).expect("whole");
+        for (rows, cols) in WINDOWS {
+            let mut part = vec![[f32::NAN; CROP_CELLS]; n];
+            model
+                .predict_batch_window(&crops[..n], &mut part, rows.clone(), cols.clone())
+                .expect("window");
+            for (k, (w, p)) in whole.iter().zip(&part).enumerate() {
+                for cell in 0..CROP_CELLS {
+                    let (r, c) = (cell / 64, cell % 64);
+                    let want = if rows.contains(&r) && cols.contains(&c) {
+                        w[cell]
+                    } else {
+                        0.0
+                    };
+                    assert_eq!(
+                        p[cell].to_bits(),
+                        want.to_bits(),
+                        "{}: batch {n}, crop {k}, window {rows:?} x {cols:?}, cell ({r}, {c}): {} vs {want}",
+                        path.display(),
+                        p[cell]
+                    );
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn committed_model_windows_are_the_whole_heatmaps_cells() {
+    check_windows(&committed_model());
+}
+
+#[test]
+fn windows_of_a_model_without_a_recognised_decoder_are_cut_from_the_whole_output() {
+    let model = FcnModel::load(&fixture("scale.onnx")).expect("load");
+    assert!(!model.decodes_windows());
+    check_windows(&fixture("scale.onnx"));
+    // And they are the fixture's exact values, crop / 255.
+    let mut model = model;
+    let crop = patterned_crop(5);
+    let mut out = [[1.0f32; CROP_CELLS]];
+    model
+        .predict_batch_window(std::slice::from_ref(&crop), &mut out, 2..4, 10..13)
+        .expect("window");
+    for cell in 0..CROP_CELLS {
+        let (r, c) = (cell / 64, cell % 64);
+        let want = if (2..4).contains(&r) && (10..13).contains(&c) {
+            crop[cell] as f32 / 255.0
+        } else {
+            0.0
+        };
+        assert!((out[0][cell] - want).abs() < 1e-6, "cell ({r}, {c})");
+    }
+}
+
+#[test]
+fn empty_or_outside_windows_are_errors() {
+    let mut model = FcnModel::load(&committed_model()).expect("load");
+    let crops = [patterned_crop(1)];
+    let mut out = [[0.5f32; CROP_CELLS]];
+    for (rows, cols) in [
+        (3..3, 0..64),
+        (0..32, 10..10),
+        (0..33, 0..64),
+        (0..32, 60..65),
+    ] {
+        let err = model
+            .predict_batch_window(&crops, &mut out, rows.clone(), cols.clone())
+            .unwrap_err();
+        assert_eq!(
+            err,
+            InferError::Window {
+                rows: rows.clone(),
+                cols: cols.clone()
+            }
+        );
+        assert!(err.to_string().contains(&format!("{rows:?}")), "{err}");
+        // Nothing was written.
+        assert!(out[0].iter().all(|&v| v == 0.5));
+    }
+}

@@ -84,6 +84,8 @@ pub struct FcnEvaluator {
     model: FcnModel,
     crops: Vec<Crop>,
     cells: Vec<HeatmapCells>,
+    /// Rows and columns computed; `None`: whole heatmaps.
+    window: Option<(std::ops::Range<usize>, std::ops::Range<usize>)>,
 }
 
 impl FcnEvaluator {
@@ -93,7 +95,22 @@ impl FcnEvaluator {
             model,
             crops: Vec::with_capacity(MAX_BATCH),
             cells: vec![[0.0; 2048]; MAX_BATCH],
+            window: None,
         }
+    }
+
+    /// This evaluator, writing only the planner's candidate cells of each heatmap
+    /// (`world::view::CANDIDATE_ROWS` x `CANDIDATE_COLS`, 192 of 2,048) and 0 elsewhere: all a
+    /// decision reads ([`crate::problem::UnloadLocation::from_heatmap`]), for about a fifth less of Psi's
+    /// time when the model's decoder runs over windows ([`FcnModel::decodes_windows`]). Not for
+    /// pictures or logs of whole heatmaps.
+    pub fn candidate_cells_only(mut self) -> Self {
+        let (rows, cols) = (world::view::CANDIDATE_ROWS, world::view::CANDIDATE_COLS);
+        self.window = Some((
+            *rows.start()..*rows.end() + 1,
+            *cols.start()..*cols.end() + 1,
+        ));
+        self
     }
 
     /// Loads the model file (e.g. `models/psi-fcn.onnx`) and wraps it.
@@ -122,7 +139,15 @@ impl FeasibilityEvaluator for FcnEvaluator {
             self.crops.clear();
             self.crops.extend(qs.iter().map(|q| *q.crop));
             let cells = &mut self.cells[..qs.len()];
-            self.model.predict_batch(&self.crops, cells)?;
+            match &self.window {
+                Some((rows, cols)) => self.model.predict_batch_window(
+                    &self.crops,
+                    cells,
+                    rows.clone(),
+                    cols.clone(),
+                )?,
+                None => self.model.predict_batch(&self.crops, cells)?,
+            }
             for (h, c) in outs.iter_mut().zip(cells.iter()) {
                 h.values_mut().copy_from_slice(c);
             }
