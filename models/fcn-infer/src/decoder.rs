@@ -26,7 +26,7 @@ use tract_onnx::tract_core::ops::math::{Add, Max};
 use tract_onnx::tract_core::ops::nn::DataFormat;
 use tract_onnx::tract_core::tract_linalg::{self, element_wise::ElementWise};
 
-use crate::direct_conv::{constant, depth_to_space_chain};
+use crate::direct_conv::{constant, depth_to_space_chain, kernel_and_bias};
 use crate::{CROP_CELLS, CROP_COLS, CROP_ROWS};
 
 /// Stage sizes: stride 2, 4 and 8 of the 32 x 64 crop.
@@ -123,10 +123,7 @@ fn pointwise(model: &TypedModel, outlet: OutletId) -> TractResult<Option<Pointwi
     {
         return Ok(None);
     }
-    let (Some(kernel), Some(bias)) = (
-        constant(model, node.inputs[1])?,
-        constant(model, node.inputs[2])?,
-    ) else {
+    let Some((kernel, bias)) = kernel_and_bias(model, node)? else {
         return Ok(None);
     };
     let (out_c, in_c) = (spec.output_channels, spec.input_channels);
@@ -544,13 +541,7 @@ impl Decoder {
         for i in span(rows, 8) {
             for j in span(cols, 8) {
                 let mut acc: [f32; K] = std::array::from_fn(|c| self.score3_b[c]);
-                for m in 0..c3 {
-                    let x = f3[(m * H3 + i) * W3 + j];
-                    let w = &self.score_w[2][m * K..m * K + K];
-                    for c in 0..K {
-                        acc[c] += w[c] * x;
-                    }
-                }
+                add_column(&mut acc, &f3[i * W3 + j..], H3 * W3, &self.score_w[2], c3);
                 self.t3[(i * W3 + j) * K..][..K].copy_from_slice(&acc);
             }
         }
@@ -559,19 +550,8 @@ impl Decoder {
                 let q = 2 * (i % 2) + j % 2;
                 let mut acc: [f32; K] = std::array::from_fn(|c| self.bias2[q * K + c]);
                 let t = &self.t3[((i / 2) * W3 + j / 2) * K..][..K];
-                for (m, &x) in t.iter().enumerate() {
-                    let w = &self.up3_w[(q * K + m) * K..][..K];
-                    for c in 0..K {
-                        acc[c] += w[c] * x;
-                    }
-                }
-                for m in 0..c2 {
-                    let x = f2[(m * H2 + i) * W2 + j];
-                    let w = &self.score_w[1][m * K..m * K + K];
-                    for c in 0..K {
-                        acc[c] += w[c] * x;
-                    }
-                }
+                add_column(&mut acc, t, 1, &self.up3_w[q * K * K..], K);
+                add_column(&mut acc, &f2[i * W2 + j..], H2 * W2, &self.score_w[1], c2);
                 self.s2[(i * W2 + j) * K..][..K].copy_from_slice(&acc);
             }
         }
@@ -580,19 +560,8 @@ impl Decoder {
                 let q = 2 * (i % 2) + j % 2;
                 let mut acc: [f32; K] = std::array::from_fn(|c| self.bias1[q * K + c]);
                 let t = &self.s2[((i / 2) * W2 + j / 2) * K..][..K];
-                for (m, &x) in t.iter().enumerate() {
-                    let w = &self.up2_w[(q * K + m) * K..][..K];
-                    for c in 0..K {
-                        acc[c] += w[c] * x;
-                    }
-                }
-                for m in 0..c1 {
-                    let x = f1[(m * H1 + i) * W1 + j];
-                    let w = &self.score_w[0][m * K..m * K + K];
-                    for c in 0..K {
-                        acc[c] += w[c] * x;
-                    }
-                }
+                add_column(&mut acc, t, 1, &self.up2_w[q * K * K..], K);
+                add_column(&mut acc, &f1[i * W1 + j..], H1 * W1, &self.score_w[0], c1);
                 let mut logit = self.up1_b;
                 for (q, l) in logit.iter_mut().enumerate() {
                     let w = &self.up1_w[q * K..q * K + K];
@@ -608,6 +577,19 @@ impl Decoder {
                     }
                 }
             }
+        }
+    }
+}
+
+/// `acc += x[m * stride] * w[m * K..m * K + K]` for `m < n` (the plain loop of
+/// [`Decoder::logits_body`]).
+#[inline(always)]
+fn add_column<const K: usize>(acc: &mut [f32; K], x: &[f32], stride: usize, w: &[f32], n: usize) {
+    for m in 0..n {
+        let xm = x[m * stride];
+        let w = &w[m * K..m * K + K];
+        for c in 0..K {
+            acc[c] += w[c] * xm;
         }
     }
 }
@@ -667,4 +649,65 @@ fn sum4(a: [std::arch::x86_64::__m256; 4]) -> std::arch::x86_64::__m256 {
 #[inline]
 fn zero8() -> std::arch::x86_64::__m256 {
     std::arch::x86_64::_mm256_setzero_ps()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The plain loop (CPUs without AVX2 and FMA, other score-channel counts) computes what the
+    /// AVX2 + FMA loop does, within float rounding, over windows of every kind.
+    #[test]
+    fn plain_logits_equal_the_fma_logits() {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../psi-fcn.onnx");
+        let typed = tract_onnx::onnx()
+            .model_for_path(&path)
+            .and_then(|m| m.with_input_fact(0, u8::fact([1, 1, CROP_ROWS, CROP_COLS]).into()))
+            .and_then(|m| m.into_typed())
+            .expect("the committed model types");
+        let (mut decoder, _) = Decoder::recognise(&typed)
+            .expect("recognise")
+            .expect("the committed model's decoder is recognised");
+        assert_eq!(decoder.k, 8);
+        // Deterministic stage values in [-1, 2) (ReLU'd stages are non-negative; negative
+        // values exercise the decoder's own ReLU all the same).
+        let stages: Vec<Vec<f32>> = decoder
+            .stage_c
+            .iter()
+            .zip([H1 * W1, H2 * W2, H3 * W3])
+            .enumerate()
+            .map(|(s, (&c, cells))| {
+                (0..c * cells)
+                    .map(|i| ((i * 2654435761 + s * 97) % 3000) as f32 / 1000.0 - 1.0)
+                    .collect()
+            })
+            .collect();
+        let f = [&stages[0][..], &stages[1][..], &stages[2][..]];
+        for (rows, cols) in [
+            (0..32, 0..64),
+            (9..17, 20..44),
+            (3..4, 61..64),
+            (31..32, 0..1),
+        ] {
+            let mut plain = vec![f32::NAN; CROP_CELLS];
+            decoder.logits_body::<8>(f, &rows, &cols, &mut plain);
+            let mut fast = vec![f32::NAN; CROP_CELLS];
+            decoder.logits::<8>(f, &rows, &cols, &mut fast);
+            for cell in 0..CROP_CELLS {
+                let (r, c) = (cell / CROP_COLS, cell % CROP_COLS);
+                if rows.contains(&r) && cols.contains(&c) {
+                    let (a, b) = (plain[cell], fast[cell]);
+                    assert!(
+                        (a - b).abs() <= 1e-4 * (1.0 + a.abs()),
+                        "cell ({r}, {c}): plain {a}, fast {b}"
+                    );
+                } else {
+                    assert!(
+                        plain[cell].is_nan() && fast[cell].is_nan(),
+                        "cell ({r}, {c}) written"
+                    );
+                }
+            }
+        }
+    }
 }

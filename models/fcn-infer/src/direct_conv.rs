@@ -945,10 +945,7 @@ fn plan_replacement(
     let (Ok(h), Ok(w)) = (input.shape[2].to_usize(), input.shape[3].to_usize()) else {
         return Ok(None);
     };
-    let (Some(kernel), Some(bias)) = (
-        constant(model, node.inputs[1])?,
-        constant(model, node.inputs[2])?,
-    ) else {
+    let Some((kernel, bias)) = kernel_and_bias(model, node)? else {
         return Ok(None);
     };
     if kernel.shape()
@@ -1083,6 +1080,22 @@ pub(crate) fn depth_to_space_chain(
         }
     }
     Ok(Some(end))
+}
+
+/// A convolution node's weights and bias (its inputs 1 and 2), when both are constants.
+pub(crate) fn kernel_and_bias(
+    model: &TypedModel,
+    node: &TypedNode,
+) -> TractResult<Option<(Arc<Tensor>, Arc<Tensor>)>> {
+    Ok(
+        match (
+            constant(model, node.inputs[1])?,
+            constant(model, node.inputs[2])?,
+        ) {
+            (Some(kernel), Some(bias)) => Some((kernel, bias)),
+            _ => None,
+        },
+    )
 }
 
 /// The value of a wire that is a constant, or a cast of one (ONNX import casts biases; tract

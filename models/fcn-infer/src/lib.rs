@@ -487,21 +487,7 @@ impl FcnModel {
                 ])
                 .enumerate()
             {
-                let values = outputs
-                    .get(k)
-                    .ok_or_else(|| InferError::Runtime(format!("encoder returned no stage {k}")))?
-                    .try_as_plain_ram()
-                    .map_err(runtime)?
-                    .as_slice::<f32>()
-                    .map_err(runtime)?;
-                if values.len() != batch * len {
-                    return Err(InferError::Runtime(format!(
-                        "encoder stage {k} has {} values, expected {}",
-                        values.len(),
-                        batch * len
-                    )));
-                }
-                *stage = values;
+                *stage = output_values(&outputs, k, batch * len, "encoder stage")?;
             }
             for (n, heat) in out.iter_mut().enumerate() {
                 let f = stages.map(|v| {
@@ -516,20 +502,7 @@ impl FcnModel {
                     .map_err(runtime)?;
             }
         } else {
-            let heat = outputs
-                .first()
-                .ok_or_else(|| InferError::Runtime("model returned no output".into()))?
-                .try_as_plain_ram()
-                .map_err(runtime)?
-                .as_slice::<f32>()
-                .map_err(runtime)?;
-            if heat.len() != batch * CROP_CELLS {
-                return Err(InferError::Runtime(format!(
-                    "output has {} values, expected {}",
-                    heat.len(),
-                    batch * CROP_CELLS
-                )));
-            }
+            let heat = output_values(&outputs, 0, batch * CROP_CELLS, "output")?;
             for (dst, src) in out.iter_mut().zip(heat.chunks_exact(CROP_CELLS)) {
                 if whole {
                     dst.copy_from_slice(src);
@@ -567,6 +540,29 @@ impl FcnModel {
 /// cell, at load time (both are float32 sums of the same terms in another order; measured
 /// differences are around 1e-7).
 const DECODER_TOLERANCE: f32 = 1e-5;
+
+/// Output `k` of a plan's run as `len` floats; `what` names it in errors.
+fn output_values<'a>(
+    outputs: &'a [TValue],
+    k: usize,
+    len: usize,
+    what: &str,
+) -> Result<&'a [f32], InferError> {
+    let values = outputs
+        .get(k)
+        .ok_or_else(|| InferError::Runtime(format!("the plan returned no {what} {k}")))?
+        .try_as_plain_ram()
+        .map_err(runtime)?
+        .as_slice::<f32>()
+        .map_err(runtime)?;
+    if values.len() != len {
+        return Err(InferError::Runtime(format!(
+            "{what} {k} has {} values, expected {len}",
+            values.len()
+        )));
+    }
+    Ok(values)
+}
 
 fn runtime(e: impl std::fmt::Display) -> InferError {
     InferError::Runtime(format!("{e:#}"))
