@@ -101,9 +101,10 @@ impl FcnEvaluator {
 
     /// This evaluator, writing only the planner's candidate cells of each heatmap
     /// (`world::view::CANDIDATE_ROWS` x `CANDIDATE_COLS`, 192 of 2,048) and 0 elsewhere: all a
-    /// decision reads ([`crate::problem::UnloadLocation::from_heatmap`]), for about a fifth less of Psi's
-    /// time when the model's decoder runs over windows ([`FcnModel::decodes_windows`]). Not for
-    /// pictures or logs of whole heatmaps.
+    /// decision reads ([`crate::problem::UnloadLocation::from_heatmap`]). When the model's
+    /// decoder runs over windows ([`FcnModel::decodes_windows`]) that takes a fifth to a quarter
+    /// less of Psi's time (docs/fcn.md); the cells are the whole heatmaps' cells, bit for bit.
+    /// Not for pictures or logs of whole heatmaps.
     pub fn candidate_cells_only(mut self) -> Self {
         let (rows, cols) = (world::view::CANDIDATE_ROWS, world::view::CANDIDATE_COLS);
         self.window = Some((
