@@ -18,7 +18,7 @@ use grop_ipc::{
 };
 use grop_onboard::executive::unload::{ArmFault, ArmPort, SkillStatus};
 use grop_onboard::executive::{
-    AbortReason, ArmDevice, ArmSnapshot, Executive, ExecutiveConfig, MissionState,
+    AbortReason, ArmDevice, ArmSnapshot, Executive, ExecutiveConfig, MissionState, RmpExecutive,
 };
 use sim_rmp::{SimConfig, SimRmp, SimRmpNode};
 use ur5e_kin::Joints;
@@ -160,7 +160,7 @@ fn scene() -> Scene {
 }
 
 struct Harness {
-    exec: Executive<MemoryBusNode, FakeArm>,
+    exec: RmpExecutive<MemoryBusNode, FakeArm>,
     clock: Arc<ManualClock>,
     base: SimRmpNode<MemoryBusNode>,
     scene: Scene,

@@ -1,0 +1,282 @@
+//! The legs of a mission: back out from the table, ask for the path, follow it, turn to the
+//! goal heading, settle, and dock straight in at a table goal. Part of [`MissionCore`]: each
+//! phase reads the cycle's inputs and writes the velocity and worker jobs into its outputs.
+
+use std::time::Duration;
+
+use grop_ipc::{EventKind, ReplanReason, TaskStep, TaskStepKind};
+use motion_control::follower::FollowStep;
+use motion_control::{Pose2, Twist};
+
+use super::mission::{CycleInputs, CycleOutputs, MissionCore, Phase};
+use super::worker::{Answer, Job, PathFailure};
+use super::{AbortReason, MissionState};
+use crate::localisation::{PlanarPose, wrap};
+
+/// Legs that may fail in a row before the mission is given up.
+pub const MAX_FAILED_LEGS: u32 = 3;
+
+/// Backing-out speed from the table, m/s.
+pub const REVERSE_SPEED_MPS: f32 = 0.15;
+
+/// Docking / back-out distances tried, longest first, m.
+pub const DOCKING_DISTANCES_M: [f64; 3] = [0.45, 0.3, 0.15];
+
+/// How long the worker may take for a path.
+const PATH_ANSWER_TIMEOUT: Duration = Duration::from_secs(5);
+
+impl MissionCore {
+    /// Advances the leg of `step` by one base cycle from `phase` (`None`: the leg starts).
+    pub(super) fn leg(
+        &mut self,
+        step: &TaskStep,
+        pose: PlanarPose,
+        phase: Option<Phase>,
+        inputs: &CycleInputs<'_>,
+        outputs: &mut CycleOutputs,
+    ) -> Option<Phase> {
+        let now = inputs.now;
+        match phase {
+            None => Some(self.start_leg(step, pose, now, outputs)),
+            Some(Phase::PathRequested { id, since }) => match inputs.answer {
+                Some(Answer::Path(answer_id, Ok(points))) if *answer_id == id => {
+                    match self.follower.set_path(points) {
+                        Ok(()) => Some(Phase::Following {
+                            deadline: self.leg_deadline(step, pose, now),
+                        }),
+                        Err(_) => {
+                            self.leg_failed(step, now, "path refused by the follower", outputs)
+                        }
+                    }
+                }
+                Some(Answer::Path(answer_id, Err(e))) if *answer_id == id => {
+                    let why = match e {
+                        PathFailure::NoRoute => "no route on the map",
+                        PathFailure::WorkerGone => "planning worker gone",
+                    };
+                    self.leg_failed(step, now, why, outputs)
+                }
+                _ if now.saturating_sub(since) > PATH_ANSWER_TIMEOUT => {
+                    self.leg_failed(step, now, "no path within 5 s", outputs)
+                }
+                _ => Some(Phase::PathRequested { id, since }),
+            },
+            Some(Phase::Reversing {
+                start,
+                distance_m,
+                deadline,
+            }) => {
+                // Backed out far enough, or blocked behind past the deadline: plan from here.
+                if pose.distance_m(&start) >= distance_m || now > deadline {
+                    Some(self.request_path(step, pose, now, outputs))
+                } else {
+                    self.velocity = Twist::new(-REVERSE_SPEED_MPS, 0.0);
+                    Some(Phase::Reversing {
+                        start,
+                        distance_m,
+                        deadline,
+                    })
+                }
+            }
+            Some(Phase::Following { deadline }) => {
+                let p = Pose2 {
+                    x_m: pose.x_m as f32,
+                    y_m: pose.y_m as f32,
+                    yaw_rad: pose.yaw_rad as f32,
+                };
+                if now > deadline {
+                    self.leg_failed(step, now, "leg took too long (blocked?)", outputs)
+                } else {
+                    match self.follower.step(&p) {
+                        FollowStep::Drive(t) => {
+                            self.velocity = t;
+                            Some(Phase::Following { deadline })
+                        }
+                        FollowStep::Arrived | FollowStep::NoPath => {
+                            Some(Phase::Aligning { deadline })
+                        }
+                    }
+                }
+            }
+            Some(Phase::Aligning { deadline }) => {
+                let err = wrap(step.yaw_rad - pose.yaw_rad);
+                if err.abs() <= self.config.yaw_tolerance_rad {
+                    Some(Phase::Settling {
+                        until: now + self.config.settle,
+                    })
+                } else if now > deadline {
+                    self.leg_failed(step, now, "could not turn to the goal heading", outputs)
+                } else {
+                    let max_w = self.config.robot.yaw_rate_radps;
+                    let w = (self.config.align_gain * err).clamp(-max_w, max_w);
+                    // A floor so the last degrees do not take forever against the limiter.
+                    let w = if w.abs() < 0.05 {
+                        0.05_f64.copysign(err)
+                    } else {
+                        w
+                    };
+                    self.velocity = Twist::new(0.0, w as f32);
+                    Some(Phase::Aligning { deadline })
+                }
+            }
+            Some(Phase::Settling { until }) if now < until => Some(Phase::Settling { until }),
+            Some(Phase::Settling { .. }) => match self.dock.take() {
+                Some(goal) => {
+                    // At the pre-goal, facing the table: drive straight in to the goal.
+                    let points = [
+                        [pose.x_m as f32, pose.y_m as f32],
+                        [goal[0] as f32, goal[1] as f32],
+                    ];
+                    match self.follower.set_path(&points) {
+                        Ok(()) => Some(Phase::Following {
+                            deadline: self.leg_deadline(step, pose, now),
+                        }),
+                        Err(_) => self.leg_failed(step, now, "docking path refused", outputs),
+                    }
+                }
+                None => {
+                    self.failed_legs = 0;
+                    let err = pose.distance_m(&PlanarPose::new(step.x_m, step.y_m, 0.0));
+                    self.event(
+                        EventKind::GoalReached,
+                        now,
+                        format_args!(
+                            "at ({:.3}, {:.3}) believed, {:.3} m from goal",
+                            pose.x_m, pose.y_m, err
+                        ),
+                        outputs,
+                    );
+                    self.next_step(now, outputs);
+                    None
+                }
+            },
+            // Not a leg phase: the caller handles it.
+            Some(other) => Some(other),
+        }
+    }
+
+    /// Starts a leg: back out from the table first if the robot stands at it, then ask for the
+    /// path (to a pre-goal in front of a table goal, see [`Self::request_path`]).
+    fn start_leg(
+        &mut self,
+        step: &TaskStep,
+        pose: PlanarPose,
+        now: Duration,
+        outputs: &mut CycleOutputs,
+    ) -> Phase {
+        if std::mem::take(&mut self.at_table) {
+            // Straight back, away from the table, as far as the map allows (up to the docking
+            // distance): turning in place next to the table would sweep the footprint into it.
+            let (s, c) = pose.yaw_rad.sin_cos();
+            let distance_m = DOCKING_DISTANCES_M
+                .iter()
+                .copied()
+                .find(|d| self.grid.is_free((pose.x_m - c * d, pose.y_m - s * d)))
+                .unwrap_or(0.0);
+            if distance_m > 0.0 {
+                return Phase::Reversing {
+                    start: pose,
+                    distance_m,
+                    deadline: now
+                        + Duration::from_secs_f64(3.0 * distance_m / REVERSE_SPEED_MPS as f64),
+                };
+            }
+        }
+        self.request_path(step, pose, now, outputs)
+    }
+
+    /// Asks the worker for the leg's path. A goal followed by an unload is docked: the path
+    /// ends at a pre-goal straight behind the goal (facing the table), where the base turns,
+    /// then drives straight in, so it never turns next to the table or between chairs.
+    fn request_path(
+        &mut self,
+        step: &TaskStep,
+        pose: PlanarPose,
+        now: Duration,
+        outputs: &mut CycleOutputs,
+    ) -> Phase {
+        let id = self.next_job_id;
+        self.next_job_id += 1;
+        let mut to = (step.x_m, step.y_m);
+        self.dock = None;
+        let unload_next = self
+            .steps
+            .get(self.step_index + 1)
+            .is_some_and(|n| n.kind() == Ok(TaskStepKind::Unload));
+        if unload_next {
+            let (s, c) = step.yaw_rad.sin_cos();
+            let straight_free = |d: f64| {
+                (0..=((d / 0.05).ceil() as usize)).all(|k| {
+                    let t = (k as f64 * 0.05).min(d);
+                    self.grid.is_free((step.x_m - c * t, step.y_m - s * t))
+                })
+            };
+            if let Some(d) = DOCKING_DISTANCES_M
+                .iter()
+                .copied()
+                .find(|d| straight_free(*d))
+            {
+                to = (step.x_m - c * d, step.y_m - s * d);
+                self.dock = Some([step.x_m, step.y_m, step.yaw_rad]);
+            }
+        }
+        outputs.job = Some(Job::Path {
+            id,
+            from: (pose.x_m, pose.y_m),
+            to,
+        });
+        Phase::PathRequested { id, since: now }
+    }
+
+    /// When a leg must have ended: the factor times its planned (or straight-line) travel time,
+    /// plus the slack; a travel cost no duration can hold counts as the straight line's.
+    fn leg_deadline(&self, step: &TaskStep, pose: PlanarPose, now: Duration) -> Duration {
+        let straight_s = pose.distance_m(&PlanarPose::new(step.x_m, step.y_m, 0.0))
+            / self.config.robot.speed_mps.max(0.05);
+        let planned = step.travel_cost_s.max(straight_s);
+        let allowed = Duration::try_from_secs_f64(planned * self.config.leg_time_factor)
+            .or_else(|_| Duration::try_from_secs_f64(straight_s * self.config.leg_time_factor))
+            .unwrap_or(Duration::ZERO);
+        now.saturating_add(allowed)
+            .saturating_add(self.config.leg_slack)
+    }
+
+    fn leg_failed(
+        &mut self,
+        step: &TaskStep,
+        now: Duration,
+        why: &str,
+        outputs: &mut CycleOutputs,
+    ) -> Option<Phase> {
+        self.event(
+            EventKind::LegFinished,
+            now,
+            format_args!("leg to ({:.2}, {:.2}) failed: {why}", step.x_m, step.y_m),
+            outputs,
+        );
+        self.failed_legs += 1;
+        if self.failed_legs > MAX_FAILED_LEGS {
+            // The base cannot get anywhere from here: stop rather than ask forever.
+            self.event(
+                EventKind::MissionAborted,
+                now,
+                format_args!("{MAX_FAILED_LEGS} legs in a row failed: the base is stuck"),
+                outputs,
+            );
+            self.state = MissionState::Aborted(AbortReason::Stuck);
+            outputs.abort = Some(AbortReason::Stuck);
+            self.velocity = Twist::ZERO;
+            return None;
+        }
+        // The unload that needed this leg cannot happen from here: let the planner decide.
+        if let Some(next) = self.steps.get(self.step_index + 1).copied() {
+            if next.kind() == Ok(TaskStepKind::Unload) {
+                self.stats.unloads_failed += 1;
+                self.request_plan(ReplanReason::LegFailed, now, Some(&next), outputs);
+                return None;
+            }
+        }
+        self.request_plan(ReplanReason::LegFailed, now, None, outputs);
+        None
+    }
+}

@@ -1,0 +1,1088 @@
+//! The mission core: every decision of the executive, as one pure function of what the shell
+//! read in a cycle.
+//!
+//! [`MissionCore::update`] takes [`CycleInputs`] (time, the base's reading and its last tick,
+//! the arm's state and the result of the skill in flight, pose fixes, plans, planner heartbeats,
+//! the planning worker's answer, and the scan, collision-monitor and operator-enable slots the
+//! lidar and safety work fill in) and writes [`CycleOutputs`] (one velocity, one arm command,
+//! at most one worker job, at most one plan request, the events in a bounded list, the abort).
+//! It opens no port, calls no device and allocates nothing: tests drive it cycle by cycle with
+//! plain values ([`super::shell`] is the process around it, like ros2_control's read / update /
+//! write). Leg phases (path, follow, align, settle, dock, back out) live in [`super::legs`].
+
+use std::sync::Arc;
+use std::time::Duration;
+
+use grop_ipc::{
+    BasePoseMsg, EventKind, EventMsg, PoseFixKind, ProcessRole, ReplanReason, ReplanRequestMsg,
+    TaskPlanMsg, TaskStep, TaskStepKind,
+};
+use motion_control::Twist;
+use motion_control::follower::PathFollower;
+use rmp_base::{BaseError, BaseMode, Odometry, Tick};
+use ur5e_kin::Joints;
+use world::nav::OccupancyGrid;
+
+use super::unload::{
+    ArmFault, ArmPort, SkillStatus, TrayGeometry, UnloadFailure, UnloadProgress, UnloadSequence,
+};
+use super::worker::{Answer, Job, MAX_PATH_POINTS};
+use super::{AbortReason, ArmSnapshot, ExecutiveConfig, MAX_TRAY_SLOTS, MissionState};
+use crate::localisation::{FixOutcome, Localiser, PlanarPose};
+
+/// Most mission phases one base cycle runs through.
+const MAX_PHASES_PER_UPDATE: usize = 8;
+
+/// Most events one update emits (an abort emits two; a cycle rarely more than three).
+pub const MAX_EVENTS_PER_CYCLE: usize = 16;
+
+/// What the base reported, as the shell read it before the update.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct BaseReading {
+    /// Dead-reckoned pose and measured velocity.
+    pub odometry: Odometry,
+    /// Start-up done and in tractor mode.
+    pub driving: bool,
+}
+
+/// The collision monitor's verdict on the velocity path (filled in by the lidar work; until
+/// then the shell passes [`MonitorState::Clear`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum MonitorState {
+    /// Nothing in the way.
+    #[default]
+    Clear,
+    /// Something in the slowdown zone: the monitor scales the velocity.
+    Slowdown,
+    /// Something in the stop zone, or the scan is stale: zero velocity.
+    Stop,
+}
+
+/// Everything one update reads. Slices and references point into the shell's preallocated
+/// buffers.
+#[derive(Debug, Clone, Copy)]
+pub struct CycleInputs<'a> {
+    /// Runtime clock time of the cycle.
+    pub now: Duration,
+    /// This cycle runs the base loop (every `base_every`-th minor cycle).
+    pub base_cycle: bool,
+    /// The base's reading (odometry as of the last tick).
+    pub base: BaseReading,
+    /// The result of the base driver's last tick, given once, in the cycle after the tick.
+    pub base_tick: Option<&'a Result<Tick, BaseError>>,
+    /// The arm's state read this cycle.
+    pub arm: Result<ArmSnapshot, ArmFault>,
+    /// The result of the arm skill in flight (a poll, or a refused start), if one is.
+    pub skill: Option<Result<SkillStatus, ArmFault>>,
+    /// Pose fixes received since the last base cycle.
+    pub fixes: &'a [BasePoseMsg],
+    /// Plans received since the last base cycle.
+    pub plans: &'a [TaskPlanMsg],
+    /// Planner heartbeats received since the last base cycle.
+    pub planner_heartbeats: u32,
+    /// The planning worker's answer, if one came.
+    pub answer: Option<&'a Answer>,
+    /// Shutdown asked (a signal).
+    pub shutdown: bool,
+    /// The runtime clock is lost (the HIL world ended).
+    pub clock_lost: bool,
+    /// The collision monitor's state (the lidar work fills it in).
+    pub monitor: MonitorState,
+    /// The operator's enable (the safety work makes start-up wait for it).
+    pub operator_enable: bool,
+}
+
+impl<'a> CycleInputs<'a> {
+    /// Inputs at `now` with nothing received: an arm that reads a default state, no skill, no
+    /// fixes, no plans, no heartbeats. Tests and the shell fill in what they have.
+    pub fn quiet(now: Duration) -> Self {
+        Self {
+            now,
+            base_cycle: true,
+            base: BaseReading::default(),
+            base_tick: None,
+            arm: Ok(ArmSnapshot::default()),
+            skill: None,
+            fixes: &[],
+            plans: &[],
+            planner_heartbeats: 0,
+            answer: None,
+            shutdown: false,
+            clock_lost: false,
+            monitor: MonitorState::Clear,
+            operator_enable: true,
+        }
+    }
+}
+
+/// The one arm command of a cycle.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub enum ArmCommand {
+    /// Nothing new.
+    #[default]
+    None,
+    /// Start a joint move.
+    MoveJoints(Joints),
+    /// Start opening (`false`) or closing (`true`) the gripper.
+    Gripper(bool),
+    /// Stop any motion.
+    Stop,
+}
+
+/// Everything one update decided. The shell clears it ([`CycleOutputs::clear`]) before each
+/// update; nothing in it allocates.
+#[derive(Debug, Clone)]
+pub struct CycleOutputs {
+    /// The base velocity (the one velocity of the cycle; written to the driver on base cycles).
+    pub velocity: Twist,
+    /// A base mode to request.
+    pub base_mode: Option<BaseMode>,
+    /// Re-arm the base driver (the one explicit acknowledgement at mission start).
+    pub rearm_base: bool,
+    /// The arm command.
+    pub arm: ArmCommand,
+    /// A job for the planning worker.
+    pub job: Option<Job>,
+    /// A plan request to publish.
+    pub request: Option<ReplanRequestMsg>,
+    /// Events to publish, in order.
+    pub events: heapless::Vec<EventMsg, MAX_EVENTS_PER_CYCLE>,
+    /// Events that did not fit (counted, logged).
+    pub events_dropped: u32,
+    /// Set in the cycle the mission aborted.
+    pub abort: Option<AbortReason>,
+}
+
+impl Default for CycleOutputs {
+    fn default() -> Self {
+        Self {
+            velocity: Twist::ZERO,
+            base_mode: None,
+            rearm_base: false,
+            arm: ArmCommand::None,
+            job: None,
+            request: None,
+            events: heapless::Vec::new(),
+            events_dropped: 0,
+            abort: None,
+        }
+    }
+}
+
+impl CycleOutputs {
+    /// Empties it for the next update.
+    pub fn clear(&mut self) {
+        self.velocity = Twist::ZERO;
+        self.base_mode = None;
+        self.rearm_base = false;
+        self.arm = ArmCommand::None;
+        self.job = None;
+        self.request = None;
+        self.events.clear();
+        self.events_dropped = 0;
+        self.abort = None;
+    }
+}
+
+/// Counters the core keeps.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct CoreStats {
+    /// Unloads that succeeded.
+    pub unloads_ok: u32,
+    /// Unloads that failed.
+    pub unloads_failed: u32,
+    /// Plans accepted.
+    pub plans: u32,
+}
+
+/// Step progress.
+#[derive(Debug, Clone)]
+pub(super) enum Phase {
+    /// Asked for the path of this leg.
+    PathRequested { id: u64, since: Duration },
+    /// Following the path.
+    Following { deadline: Duration },
+    /// Turning to the goal heading.
+    Aligning { deadline: Duration },
+    /// Standing still before the step counts as reached.
+    Settling { until: Duration },
+    /// Waiting for the objects to be loaded.
+    Loading { until: Duration },
+    /// At the table, waiting for a table-relative fix.
+    AwaitTableFix { since: Duration },
+    /// Backing straight out from the table before the next leg.
+    Reversing {
+        start: PlanarPose,
+        distance_m: f64,
+        deadline: Duration,
+    },
+    /// Moving the arm to its carry pose before the base first drives.
+    ParkingArm { started: bool, since: Duration },
+    /// The worker plans the unload's arm motions.
+    PlanningArm {
+        id: u64,
+        since: Duration,
+        slot: usize,
+    },
+    /// Arm at work (the sequence lives in `MissionCore::unload`, allocated once).
+    Unloading,
+}
+
+/// The arm as the unload sequence sees it inside an update: a start becomes the cycle's
+/// [`ArmCommand`]; a poll reads the skill result the shell passed in.
+struct CommandArm<'a> {
+    skill: Option<Result<SkillStatus, ArmFault>>,
+    command: &'a mut ArmCommand,
+}
+
+impl ArmPort for CommandArm<'_> {
+    fn start_move_joints(&mut self, q: &Joints, _now: Duration) -> Result<(), ArmFault> {
+        *self.command = ArmCommand::MoveJoints(*q);
+        self.skill = None;
+        Ok(())
+    }
+
+    fn start_gripper(&mut self, close: bool, _now: Duration) -> Result<(), ArmFault> {
+        *self.command = ArmCommand::Gripper(close);
+        self.skill = None;
+        Ok(())
+    }
+
+    fn poll(&mut self, _now: Duration) -> Result<SkillStatus, ArmFault> {
+        // No result yet: the skill was started this cycle or the shell has not polled it.
+        self.skill.take().unwrap_or(Ok(SkillStatus::Running))
+    }
+}
+
+/// Writes a short event text without allocating.
+pub(super) fn text(
+    args: std::fmt::Arguments<'_>,
+) -> heapless::String<{ grop_ipc::EVENT_DETAIL_CAPACITY }> {
+    use std::fmt::Write;
+    let mut s = heapless::String::new();
+    // Too long: cut (the message would be cut to the capacity anyway).
+    let _ = s.write_fmt(args);
+    s
+}
+
+pub(super) fn ns(d: Duration) -> u64 {
+    u64::try_from(d.as_nanos()).unwrap_or(u64::MAX)
+}
+
+/// The executive's decisions.
+pub struct MissionCore {
+    pub(super) config: ExecutiveConfig,
+    pub(super) grid: Arc<OccupancyGrid>,
+    pub(super) tray: TrayGeometry,
+    pub(super) localiser: Localiser,
+    pub(super) follower: PathFollower<MAX_PATH_POINTS>,
+    /// While driving to a pre-goal: the goal the base then docks at, straight ahead.
+    pub(super) dock: Option<[f64; 3]>,
+    /// The last step done was at the table: back out before the next leg.
+    pub(super) at_table: bool,
+    /// The arm is in its carry pose (done once before the first leg).
+    arm_parked: bool,
+    /// Legs failed in a row.
+    pub(super) failed_legs: u32,
+    /// The unload in progress (in place: a new one overwrites it, nothing is allocated).
+    unload: Option<UnloadSequence>,
+    pub(super) steps: Vec<TaskStep>,
+    pub(super) plan_id: u64,
+    pub(super) step_index: usize,
+    pub(super) phase: Option<Phase>,
+    pub(super) state: MissionState,
+    request_id: u64,
+    request_sent: Option<Duration>,
+    last_request: ReplanRequestMsg,
+    /// Standing still after a localisation jump until then.
+    jump_hold_until: Option<Duration>,
+    /// Objects not yet placed (or given up), bit i = object i.
+    remaining: u64,
+    /// Tray slot -> object.
+    slots: [Option<u32>; MAX_TRAY_SLOTS],
+    planner_seen: Option<Duration>,
+    pub(super) next_job_id: u64,
+    pub(super) velocity: Twist,
+    stale_reported: bool,
+    arm_stopped_sent: bool,
+    mode_requested: bool,
+    /// The newest skill result not yet consumed (parking reads it on base cycles).
+    skill_result: Option<Result<SkillStatus, ArmFault>>,
+    event_seq: u64,
+    /// When the last global fix was taken in.
+    global_fix_received: Option<Duration>,
+    /// Fixes refused for a stamp in the future.
+    future_fixes: u64,
+    pub(super) stats: CoreStats,
+}
+
+impl MissionCore {
+    /// A core for `objects` objects (bits of `remaining`) on the map `grid`, with the tray
+    /// solved beforehand. Allocates its step list once.
+    pub fn new(
+        config: ExecutiveConfig,
+        grid: Arc<OccupancyGrid>,
+        tray: TrayGeometry,
+        objects: usize,
+    ) -> Self {
+        let remaining = if objects >= 64 {
+            u64::MAX
+        } else {
+            (1u64 << objects) - 1
+        };
+        Self {
+            localiser: Localiser::new(config.localiser),
+            follower: PathFollower::new(config.follower),
+            steps: Vec::with_capacity(grop_ipc::MAX_TASK_STEPS),
+            config,
+            grid,
+            tray,
+            dock: None,
+            at_table: false,
+            arm_parked: false,
+            failed_legs: 0,
+            unload: None,
+            plan_id: 0,
+            step_index: 0,
+            phase: None,
+            state: MissionState::Starting,
+            request_id: 0,
+            request_sent: None,
+            last_request: zero_request(),
+            jump_hold_until: None,
+            remaining,
+            slots: [None; MAX_TRAY_SLOTS],
+            planner_seen: None,
+            next_job_id: 1,
+            velocity: Twist::ZERO,
+            stale_reported: false,
+            arm_stopped_sent: false,
+            mode_requested: false,
+            skill_result: None,
+            event_seq: 0,
+            global_fix_received: None,
+            future_fixes: 0,
+            stats: CoreStats::default(),
+        }
+    }
+
+    /// The mission state.
+    pub fn state(&self) -> MissionState {
+        self.state
+    }
+
+    /// Counters.
+    pub fn stats(&self) -> CoreStats {
+        self.stats
+    }
+
+    /// The localisation estimate.
+    pub fn estimate(&self) -> PlanarPose {
+        self.localiser.estimate()
+    }
+
+    /// The velocity the core commands now.
+    pub fn velocity(&self) -> Twist {
+        self.velocity
+    }
+
+    /// The request the core is waiting on (0: none yet).
+    pub fn request_id(&self) -> u64 {
+        self.request_id
+    }
+
+    /// One update: reads `inputs`, decides, writes `outputs` (which the caller cleared).
+    pub fn update(&mut self, inputs: &CycleInputs<'_>, outputs: &mut CycleOutputs) {
+        let now = inputs.now;
+        if inputs.shutdown {
+            self.abort(AbortReason::Shutdown, now, outputs);
+        } else if inputs.clock_lost {
+            self.abort(AbortReason::ClockLost, now, outputs);
+        }
+        self.arm_reading(inputs, outputs);
+        if let Some(tick) = inputs.base_tick {
+            self.base_tick(tick, now, outputs);
+        }
+        if inputs.base_cycle {
+            self.base_loop(inputs, outputs);
+        }
+        outputs.velocity = self.velocity;
+    }
+
+    fn arm_reading(&mut self, inputs: &CycleInputs<'_>, outputs: &mut CycleOutputs) {
+        let now = inputs.now;
+        match inputs.arm {
+            Ok(snapshot) => {
+                if snapshot.protective_stop || snapshot.emergency_stop {
+                    self.abort(AbortReason::ArmStopped, now, outputs);
+                }
+            }
+            Err(ArmFault::LinkLost) => self.abort(AbortReason::ArmLinkLost, now, outputs),
+            Err(ArmFault::ProtectiveStop | ArmFault::EmergencyStop) => {
+                self.abort(AbortReason::ArmStopped, now, outputs)
+            }
+            Err(_) => {}
+        }
+        if inputs.skill.is_some() {
+            self.skill_result = inputs.skill;
+        }
+        if let (Some(Phase::Unloading), Some(seq)) = (&self.phase, &mut self.unload) {
+            if matches!(self.state, MissionState::Running) {
+                let mut arm = CommandArm {
+                    skill: self.skill_result.take(),
+                    command: &mut outputs.arm,
+                };
+                let progress = seq.poll(&mut arm, &self.tray, now);
+                match progress {
+                    UnloadProgress::Busy(_) => {}
+                    UnloadProgress::Placed => self.unload_done(now, None, outputs),
+                    UnloadProgress::Failed(f) => self.unload_done(now, Some(f), outputs),
+                }
+            }
+        }
+    }
+
+    fn base_tick(
+        &mut self,
+        tick: &Result<Tick, BaseError>,
+        now: Duration,
+        outputs: &mut CycleOutputs,
+    ) {
+        match tick {
+            // Unreadable feedback disarms the driver like silence does: no mission goes on
+            // with a base that only ever gets zero.
+            Err(BaseError::Silent { .. } | BaseError::FeedbackUnreadable { .. }) => {
+                self.abort(AbortReason::BaseLinkLost, now, outputs)
+            }
+            Err(BaseError::Faulted { .. } | BaseError::Overspeed { .. }) => {
+                self.abort(AbortReason::BaseFault, now, outputs)
+            }
+            Err(BaseError::SecondCommander { .. }) => {
+                self.abort(AbortReason::SecondCommander, now, outputs)
+            }
+            _ => {}
+        }
+    }
+
+    fn base_loop(&mut self, inputs: &CycleInputs<'_>, outputs: &mut CycleOutputs) {
+        let now = inputs.now;
+        // Localisation: odometry, then fixes.
+        let odo = inputs.base.odometry;
+        self.localiser
+            .on_odometry(PlanarPose::new(odo.x_m, odo.y_m, odo.yaw_rad));
+        for fix in inputs.fixes {
+            if fix.stamp_ns > ns(now.saturating_add(self.config.fix_future_tolerance)) {
+                self.future_fixes += 1;
+                if self.future_fixes == 1 {
+                    self.event(
+                        EventKind::StaleInput,
+                        now,
+                        format_args!(
+                            "pose fix stamped {:.3} s in the future refused",
+                            Duration::from_nanos(fix.stamp_ns.saturating_sub(ns(now)))
+                                .as_secs_f64()
+                        ),
+                        outputs,
+                    );
+                }
+                continue;
+            }
+            let Ok(pose) = fix.pose() else { continue };
+            let pose = PlanarPose::new(pose[0], pose[1], pose[2]);
+            let outcome = match fix.kind() {
+                Ok(PoseFixKind::Global) => {
+                    let outcome = self.localiser.on_global_fix(pose, fix.stamp_ns);
+                    if outcome != FixOutcome::Rejected {
+                        self.global_fix_received = Some(now);
+                    }
+                    outcome
+                }
+                Ok(PoseFixKind::TableRelative) => self.localiser.on_table_fix(pose, fix.stamp_ns),
+                Err(_) => FixOutcome::Rejected,
+            };
+            if let FixOutcome::Jumped { by_m } = outcome {
+                if by_m > self.config.localiser.jump_m {
+                    // Which pose is right is unknown until the next fixes agree: stand still
+                    // meanwhile instead of steering hard towards either.
+                    self.jump_hold_until = Some(now + self.config.jump_hold);
+                    self.event(
+                        EventKind::StaleInput,
+                        now,
+                        format_args!("localisation jumped {by_m:.2} m"),
+                        outputs,
+                    );
+                }
+            }
+        }
+        // Peers.
+        if inputs.planner_heartbeats > 0 {
+            self.planner_seen = Some(now);
+        }
+        if let Some(seen) = self.planner_seen {
+            if now.saturating_sub(seen) > self.config.planner_timeout
+                && matches!(self.state, MissionState::Starting | MissionState::Running)
+            {
+                self.event(
+                    EventKind::PeerLost,
+                    now,
+                    format_args!("planner heartbeats missing for {:?}", now - seen),
+                    outputs,
+                );
+                self.abort(AbortReason::PlannerLost, now, outputs);
+            }
+        }
+        // Plans.
+        for plan in inputs.plans {
+            if plan.answers_request == self.request_id && self.request_id != 0 {
+                self.take_plan(plan, now, outputs);
+            }
+        }
+
+        self.velocity = Twist::ZERO;
+        match self.state {
+            MissionState::Starting => {
+                if !self.mode_requested {
+                    self.mode_requested = true;
+                    outputs.base_mode = Some(BaseMode::Tractor);
+                    // The one explicit re-arm of the RMP driver: at mission start. After a lost
+                    // link, a base fault or an overspeed the driver disarms itself and the
+                    // mission aborts; nothing here re-arms it again.
+                    outputs.rearm_base = true;
+                }
+                if inputs.base.driving && self.localiser.is_initialised() {
+                    self.state = MissionState::Running;
+                    self.request_plan(ReplanReason::MissionStart, now, None, outputs);
+                }
+            }
+            MissionState::Running => self.mission_step(inputs, outputs),
+            MissionState::Finished | MissionState::Aborted(_) => {}
+        }
+        if self.jump_hold_until.is_some_and(|until| now < until) {
+            self.velocity = Twist::ZERO;
+        } else {
+            self.jump_hold_until = None;
+        }
+        let stale = self.localisation_stale(now);
+        if matches!(self.state, MissionState::Running) && self.velocity != Twist::ZERO && stale {
+            // No fixes: do not drive on odometry alone.
+            self.velocity = Twist::ZERO;
+            if !self.stale_reported {
+                self.stale_reported = true;
+                self.event(
+                    EventKind::StaleInput,
+                    now,
+                    format_args!("no localisation fix: holding"),
+                    outputs,
+                );
+            }
+        } else if !stale {
+            self.stale_reported = false;
+        }
+        // A request nobody answered (the planner joined late): ask again.
+        if let Some(sent) = self.request_sent {
+            if now.saturating_sub(sent) > self.config.plan_request_retry {
+                self.request_sent = Some(now);
+                self.last_request.stamp_ns = ns(now);
+                outputs.request = Some(self.last_request);
+            }
+        }
+        if matches!(self.state, MissionState::Aborted(_)) {
+            self.velocity = Twist::ZERO;
+        }
+    }
+
+    /// No global fix for the stale time, counted from its stamp and from when it was received
+    /// (a stamp alone can lie).
+    fn localisation_stale(&self, now: Duration) -> bool {
+        let by_receipt = self.global_fix_received.is_none_or(|t| {
+            now.saturating_sub(t) > Duration::from_nanos(self.config.localiser.stale_after_ns)
+        });
+        self.localiser.is_stale(ns(now)) || by_receipt
+    }
+
+    /// Pose fixes refused for a stamp in the future.
+    pub fn future_fixes(&self) -> u64 {
+        self.future_fixes
+    }
+
+    fn take_plan(&mut self, plan: &TaskPlanMsg, now: Duration, outputs: &mut CycleOutputs) {
+        let Ok(steps) = plan.steps() else {
+            self.event(
+                EventKind::StaleInput,
+                now,
+                format_args!("plan {} rejected: malformed", plan.plan_id),
+                outputs,
+            );
+            return;
+        };
+        if let Err((i, count, slots)) = self.check_tray(steps) {
+            self.event(
+                EventKind::StaleInput,
+                now,
+                format_args!(
+                    "plan {} rejected: step {i} loads {count} objects onto a tray of {slots} slots",
+                    plan.plan_id
+                ),
+                outputs,
+            );
+            return;
+        }
+        self.stats.plans += 1;
+        self.steps.clear();
+        self.steps.extend_from_slice(steps);
+        self.plan_id = plan.plan_id;
+        self.step_index = 0;
+        self.phase = None;
+        self.request_sent = None;
+        self.event(
+            EventKind::PlanStarted,
+            now,
+            // Not the wall-clock decision time: events are behaviour, and the same mission
+            // must log the same events (the time is in the plan and the log's /timing/).
+            format_args!(
+                "plan {}: {} steps, U={:.1} F={:.2} C={:.1}s",
+                plan.plan_id,
+                steps.len(),
+                plan.utility,
+                plan.feasibility,
+                plan.cost_s
+            ),
+            outputs,
+        );
+    }
+
+    /// Whether the plan's loads fit the tray: from what is on board now, every load step adds
+    /// its objects not yet on board, every unload frees its object; never more than the usable
+    /// slots at once. The error is (step, objects on board, slots).
+    fn check_tray(&self, steps: &[TaskStep]) -> Result<(), (usize, usize, usize)> {
+        let slots = self.slots.len().min(self.tray.pick.len());
+        let mut on_board = self.on_board();
+        for (i, step) in steps.iter().enumerate() {
+            match step.kind() {
+                Ok(TaskStepKind::Load) => {
+                    on_board |= step.load_mask;
+                    let count = on_board.count_ones() as usize;
+                    if count > slots {
+                        return Err((i, count, slots));
+                    }
+                }
+                Ok(TaskStepKind::Unload) => {
+                    if let Ok(o) = step.object() {
+                        on_board &= !(1u64 << o);
+                    }
+                }
+                _ => {}
+            }
+        }
+        Ok(())
+    }
+
+    fn on_board(&self) -> u64 {
+        self.slots
+            .iter()
+            .flatten()
+            .fold(0u64, |m, &o| m | (1u64 << o.min(63)))
+    }
+
+    pub(super) fn request_plan(
+        &mut self,
+        reason: ReplanReason,
+        now: Duration,
+        failed: Option<&TaskStep>,
+        outputs: &mut CycleOutputs,
+    ) {
+        self.request_id += 1;
+        let est = self.localiser.estimate();
+        let mut req = zero_request();
+        req.request_id = self.request_id;
+        req.stamp_ns = ns(now);
+        req.set_reason(reason);
+        req.remaining_mask = self.remaining;
+        req.on_board_mask = self.on_board();
+        req.pose = [est.x_m, est.y_m, est.yaw_rad];
+        if let Some(step) = failed {
+            req.failed_object = step.object_index;
+            req.failed_side = step.side;
+            req.failed_goal_m = [step.x_m, step.y_m];
+        }
+        self.last_request = req;
+        self.request_sent = Some(now);
+        self.steps.clear();
+        self.phase = None;
+        outputs.request = Some(req);
+        let id = self.request_id;
+        self.event(
+            EventKind::ReplanRequested,
+            now,
+            format_args!("request {id} ({reason:?})"),
+            outputs,
+        );
+    }
+
+    pub(super) fn current_step(&self) -> Option<TaskStep> {
+        self.steps.get(self.step_index).copied()
+    }
+
+    pub(super) fn next_step(&mut self, now: Duration, outputs: &mut CycleOutputs) {
+        self.step_index += 1;
+        self.phase = None;
+        if self.step_index >= self.steps.len() && self.request_sent.is_none() {
+            self.state = MissionState::Finished;
+            let (plan, ok, failed) = (
+                self.plan_id,
+                self.stats.unloads_ok,
+                self.stats.unloads_failed,
+            );
+            self.event(
+                EventKind::PlanFinished,
+                now,
+                format_args!("plan {plan} finished: {ok} placed, {failed} failed"),
+                outputs,
+            );
+        }
+    }
+
+    /// Runs every phase that is ready in this base cycle: a phase that ends hands over to the
+    /// next at once (plan taken -> arm parked -> path asked; path answered -> first velocity),
+    /// until one waits on the world (a job, an arm command, a request, a velocity) or none
+    /// changes. So a plan reaches the first motion command one path search after it arrives,
+    /// not one base cycle per phase.
+    fn mission_step(&mut self, inputs: &CycleInputs<'_>, outputs: &mut CycleOutputs) {
+        for _ in 0..MAX_PHASES_PER_UPDATE {
+            let before = self.phase.as_ref().map(std::mem::discriminant);
+            let index = self.step_index;
+            self.mission_pass(inputs, outputs);
+            let progressed = before != self.phase.as_ref().map(std::mem::discriminant)
+                || index != self.step_index;
+            let waits = outputs.job.is_some()
+                || outputs.arm != ArmCommand::None
+                || outputs.request.is_some()
+                || self.velocity != Twist::ZERO
+                || !matches!(self.state, MissionState::Running);
+            if !progressed || waits {
+                break;
+            }
+        }
+    }
+
+    fn mission_pass(&mut self, inputs: &CycleInputs<'_>, outputs: &mut CycleOutputs) {
+        let now = inputs.now;
+        if self.request_sent.is_some() {
+            return; // waiting for a plan: hold still
+        }
+        let Some(step) = self.current_step() else {
+            if self.steps.is_empty() && self.stats.plans > 0 {
+                self.state = MissionState::Finished;
+                self.event(
+                    EventKind::PlanFinished,
+                    now,
+                    format_args!("nothing left to do"),
+                    outputs,
+                );
+            }
+            return;
+        };
+        let kind = step.kind();
+        let pose = self.localiser.estimate();
+        let phase = self.phase.take();
+        if !self.arm_parked && phase.is_none() {
+            self.phase = Some(Phase::ParkingArm {
+                started: false,
+                since: now,
+            });
+            return;
+        }
+        self.phase = match (kind, phase) {
+            (Ok(_), Some(Phase::ParkingArm { started, since })) => {
+                self.park_arm(started, since, now, outputs)
+            }
+            (Ok(TaskStepKind::Load), None) => Some(Phase::Loading {
+                until: now + self.config.load_wait,
+            }),
+            (Ok(TaskStepKind::Unload), None) => Some(Phase::AwaitTableFix { since: now }),
+            (Ok(_), Some(Phase::Loading { until })) => {
+                if now >= until {
+                    self.load(&step, now, outputs);
+                    None
+                } else {
+                    Some(Phase::Loading { until })
+                }
+            }
+            (Ok(_), Some(Phase::AwaitTableFix { since })) => {
+                if let Some(fix) = self.localiser.table_pose(ns(since)) {
+                    self.start_unload(&step, fix, now, outputs)
+                } else if now.saturating_sub(since) > self.config.table_fix_wait {
+                    // No table fix: fall back to the global estimate (less precise).
+                    self.start_unload(&step, pose, now, outputs)
+                } else {
+                    Some(Phase::AwaitTableFix { since })
+                }
+            }
+            (Ok(_), Some(Phase::PlanningArm { id, since, slot })) => match inputs.answer {
+                Some(Answer::Unload(answer_id, planned)) if *answer_id == id => match planned {
+                    Ok(plan) => {
+                        self.unload = Some(UnloadSequence::new(slot, plan.clone()));
+                        Some(Phase::Unloading)
+                    }
+                    Err(f) => {
+                        self.finish_failed_unload(&step, now, *f, outputs);
+                        None
+                    }
+                },
+                _ if now.saturating_sub(since) > Duration::from_secs(10) => {
+                    self.finish_failed_unload(&step, now, UnloadFailure::NoArmPath, outputs);
+                    None
+                }
+                _ => Some(Phase::PlanningArm { id, since, slot }),
+            },
+            (Ok(_), Some(Phase::Unloading)) => Some(Phase::Unloading), // the arm cycle drives it
+            // Every step is "be at (x, y, yaw)" first: the leg phases.
+            (Ok(_), phase) => self.leg(&step, pose, phase, inputs, outputs),
+            (Err(_), _) => {
+                let index = self.step_index;
+                self.event(
+                    EventKind::StaleInput,
+                    now,
+                    format_args!("step {index} has no known kind: skipped"),
+                    outputs,
+                );
+                self.next_step(now, outputs);
+                None
+            }
+        };
+    }
+
+    fn park_arm(
+        &mut self,
+        started: bool,
+        since: Duration,
+        now: Duration,
+        outputs: &mut CycleOutputs,
+    ) -> Option<Phase> {
+        if !started {
+            outputs.arm = ArmCommand::MoveJoints(self.tray.carry);
+            self.skill_result = None;
+            return Some(Phase::ParkingArm {
+                started: true,
+                since,
+            });
+        }
+        match self.skill_result.take() {
+            Some(Ok(SkillStatus::Done { .. })) => {
+                self.arm_parked = true;
+                None
+            }
+            Some(Err(_)) => {
+                self.abort(AbortReason::ArmStopped, now, outputs);
+                None
+            }
+            Some(Ok(SkillStatus::Running)) | None
+                if now.saturating_sub(since) < Duration::from_secs(20) =>
+            {
+                Some(Phase::ParkingArm {
+                    started: true,
+                    since,
+                })
+            }
+            Some(Ok(SkillStatus::Running)) | None => {
+                self.abort(AbortReason::ArmStopped, now, outputs);
+                None
+            }
+        }
+    }
+
+    fn load(&mut self, step: &TaskStep, now: Duration, outputs: &mut CycleOutputs) {
+        let mut slot = 0;
+        for object in 0..64u32 {
+            if step.load_mask & (1u64 << object) != 0 {
+                while slot < self.slots.len() && self.slots[slot].is_some() {
+                    slot += 1;
+                }
+                if slot < self.slots.len().min(self.tray.pick.len()) {
+                    self.slots[slot] = Some(object);
+                }
+            }
+        }
+        self.event(
+            EventKind::Loaded,
+            now,
+            format_args!("objects {:#x} on the tray", step.load_mask),
+            outputs,
+        );
+        self.next_step(now, outputs);
+    }
+
+    /// Hands the unload's arm planning (IK at the measured pose, RRT-Connect transits) to the
+    /// worker.
+    fn start_unload(
+        &mut self,
+        step: &TaskStep,
+        at: PlanarPose,
+        now: Duration,
+        outputs: &mut CycleOutputs,
+    ) -> Option<Phase> {
+        let object = step.object_index;
+        let Some(slot) = self.slots.iter().position(|s| *s == Some(object)) else {
+            self.finish_failed_unload(step, now, UnloadFailure::NothingInSlot, outputs);
+            return None;
+        };
+        let id = self.next_job_id;
+        self.next_job_id += 1;
+        outputs.job = Some(Job::Unload {
+            id,
+            base: ur5e_kin::BasePose {
+                x_m: at.x_m,
+                y_m: at.y_m,
+                yaw_rad: at.yaw_rad,
+            },
+            target: step.target_m,
+            from_slot: self.tray.pick_above[slot.min(self.tray.pick_above.len() - 1)],
+            carry: self.tray.carry,
+            seed: self.plan_id ^ (u64::from(object) << 32) ^ id,
+        });
+        Some(Phase::PlanningArm {
+            id,
+            since: now,
+            slot,
+        })
+    }
+
+    fn unload_done(
+        &mut self,
+        now: Duration,
+        failure: Option<UnloadFailure>,
+        outputs: &mut CycleOutputs,
+    ) {
+        let Some(step) = self.current_step() else {
+            return;
+        };
+        match failure {
+            None => {
+                self.stats.unloads_ok += 1;
+                let object = step.object_index;
+                for s in self.slots.iter_mut() {
+                    if *s == Some(object) {
+                        *s = None;
+                    }
+                }
+                self.remaining &= !(1u64 << object.min(63));
+                self.at_table = true;
+                self.event(
+                    EventKind::UnloadSucceeded,
+                    now,
+                    format_args!("object {object} released on its target"),
+                    outputs,
+                );
+                self.next_step(now, outputs);
+            }
+            Some(UnloadFailure::Arm(fault)) => {
+                let reason = match fault {
+                    ArmFault::LinkLost => AbortReason::ArmLinkLost,
+                    ArmFault::ProtectiveStop | ArmFault::EmergencyStop => AbortReason::ArmStopped,
+                    ArmFault::SkillFailed | ArmFault::GripperFault => {
+                        self.finish_failed_unload(&step, now, UnloadFailure::Arm(fault), outputs);
+                        return;
+                    }
+                };
+                self.abort(reason, now, outputs);
+            }
+            Some(f) => self.finish_failed_unload(&step, now, f, outputs),
+        }
+    }
+
+    fn finish_failed_unload(
+        &mut self,
+        step: &TaskStep,
+        now: Duration,
+        failure: UnloadFailure,
+        outputs: &mut CycleOutputs,
+    ) {
+        self.stats.unloads_failed += 1;
+        self.at_table = true;
+        self.event(
+            EventKind::UnloadFailed,
+            now,
+            format_args!("object {}: {failure:?}", step.object_index),
+            outputs,
+        );
+        self.request_plan(ReplanReason::UnloadFailed, now, Some(step), outputs);
+    }
+
+    /// Stops everything: zero velocity from now on, the arm stopped once, the mission ended.
+    pub(super) fn abort(&mut self, reason: AbortReason, now: Duration, outputs: &mut CycleOutputs) {
+        self.velocity = Twist::ZERO;
+        outputs.velocity = Twist::ZERO;
+        if !self.arm_stopped_sent {
+            self.arm_stopped_sent = true;
+            outputs.arm = ArmCommand::Stop;
+        }
+        if matches!(self.state, MissionState::Aborted(_)) {
+            return;
+        }
+        self.state = MissionState::Aborted(reason);
+        outputs.abort = Some(reason);
+        self.phase = None;
+        self.request_sent = None;
+        let kind = match reason {
+            AbortReason::BaseLinkLost | AbortReason::ArmLinkLost => EventKind::LinkLost,
+            AbortReason::BaseFault | AbortReason::SecondCommander => EventKind::BaseFault,
+            AbortReason::ArmStopped => EventKind::ArmStopped,
+            AbortReason::PlannerLost => EventKind::PeerLost,
+            AbortReason::ClockLost | AbortReason::Shutdown | AbortReason::Stuck => {
+                EventKind::MissionAborted
+            }
+        };
+        if kind != EventKind::MissionAborted {
+            self.event(
+                kind,
+                now,
+                format_args!("{reason:?}: base to zero, arm stopped"),
+                outputs,
+            );
+        }
+        self.event(
+            EventKind::MissionAborted,
+            now,
+            format_args!("{reason:?}; restart the executive to re-arm"),
+            outputs,
+        );
+    }
+
+    pub(super) fn event(
+        &mut self,
+        kind: EventKind,
+        now: Duration,
+        args: std::fmt::Arguments<'_>,
+        outputs: &mut CycleOutputs,
+    ) {
+        self.event_seq += 1;
+        let detail = text(args);
+        log::info!("event {kind:?} step {}: {detail}", self.step_index);
+        let mut msg = EventMsg::new(kind, ns(now), &detail).with_source(ProcessRole::Executive);
+        msg.seq = self.event_seq;
+        msg.plan_id = self.plan_id;
+        msg.step_index = u32::try_from(self.step_index).unwrap_or(u32::MAX);
+        if outputs.events.push(msg).is_err() {
+            outputs.events_dropped += 1;
+        }
+    }
+}
+
+fn zero_request() -> ReplanRequestMsg {
+    ReplanRequestMsg {
+        request_id: 0,
+        stamp_ns: 0,
+        reason: 0,
+        failed_object: 0,
+        remaining_mask: 0,
+        on_board_mask: 0,
+        pose: [0.0; 3],
+        failed_side: 0,
+        reserved: 0,
+        failed_goal_m: [0.0; 2],
+    }
+}
+
+#[cfg(test)]
+#[path = "mission_tests.rs"]
+mod tests;

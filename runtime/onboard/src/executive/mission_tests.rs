@@ -1,0 +1,461 @@
+//! The core's reactions, cycle by cycle with plain values: no IPC, no bus, no process.
+
+use std::sync::Arc;
+use std::time::Duration;
+
+use grop_ipc::{BasePoseMsg, EventKind, MAX_TASK_STEPS, PoseFixKind, TaskPlanMsg, TaskStep};
+use motion_control::Twist;
+use rmp_base::{BaseError, BaseMode, Tick};
+use world::nav::OccupancyGrid;
+use world::{RobotConfig, Scene};
+
+use super::*;
+use crate::executive::unload::{ArmFault, SkillStatus, solve_tray};
+use crate::executive::worker::{Answer, FollowerPath, Job};
+use crate::executive::{AbortReason, ArmSnapshot, ExecutiveConfig, MissionState};
+
+const MS: Duration = Duration::from_millis(1);
+
+/// A core on the paper's empty room, with the time and the base's pose kept by the test.
+struct Bench {
+    core: MissionCore,
+    out: CycleOutputs,
+    now: Duration,
+    /// Odometry the base reports (integrated from the commanded velocity).
+    odo: rmp_base::Odometry,
+    fix_seq: u64,
+    /// Send a global fix every base cycle.
+    fixes_on: bool,
+    events: Vec<(EventKind, String)>,
+}
+
+fn config() -> ExecutiveConfig {
+    ExecutiveConfig::for_robot(&RobotConfig::default())
+}
+
+impl Bench {
+    fn new() -> Self {
+        let config = config();
+        let scene = Scene::empty_paper_room();
+        let grid = Arc::new(OccupancyGrid::from_scene(&scene, &config.robot));
+        let tray = solve_tray(&config.robot.place, &config.tray_slots).expect("tray");
+        Self {
+            core: MissionCore::new(config, grid, tray, 3),
+            out: CycleOutputs::default(),
+            now: Duration::ZERO,
+            odo: rmp_base::Odometry {
+                x_m: 1.0,
+                y_m: 1.0,
+                ..Default::default()
+            },
+            fix_seq: 0,
+            fixes_on: true,
+            events: Vec::new(),
+        }
+    }
+
+    /// One base cycle (20 ms later), with `edit` changing the inputs.
+    fn step<'a>(&mut self, edit: impl FnOnce(&mut CycleInputs<'a>)) {
+        self.now += 20 * MS;
+        let dt = 0.02;
+        let v = f64::from(self.core.velocity().speed_mps);
+        let w = f64::from(self.core.velocity().yaw_rate_radps);
+        self.odo.x_m += v * self.odo.yaw_rad.cos() * dt;
+        self.odo.y_m += v * self.odo.yaw_rad.sin() * dt;
+        self.odo.yaw_rad += w * dt;
+        let fixes: &'a [BasePoseMsg] = if self.fixes_on {
+            self.fix_seq += 1;
+            let fix = BasePoseMsg::fix(
+                self.fix_seq,
+                super::ns(self.now),
+                PoseFixKind::Global,
+                [self.odo.x_m, self.odo.y_m, self.odo.yaw_rad],
+                0.01,
+                0.01,
+            );
+            // A few hundred bytes per step, for the test's lifetime: simpler than a buffer that
+            // outlives the borrow the edit closure may hold.
+            Box::leak(Box::new([fix]))
+        } else {
+            &[]
+        };
+        let mut inputs = CycleInputs::quiet(self.now);
+        inputs.base = BaseReading {
+            odometry: self.odo,
+            driving: true,
+        };
+        inputs.fixes = fixes;
+        inputs.planner_heartbeats = 1;
+        edit(&mut inputs);
+        self.out.clear();
+        self.core.update(&inputs, &mut self.out);
+        for e in &self.out.events {
+            self.events.push((
+                e.kind().expect("event kind"),
+                e.detail().unwrap_or("").to_string(),
+            ));
+        }
+    }
+
+    fn saw(&self, kind: EventKind) -> bool {
+        self.events.iter().any(|(k, _)| *k == kind)
+    }
+
+    /// Runs until the core asks for a plan; returns the request id.
+    fn until_request(&mut self) -> u64 {
+        for _ in 0..50 {
+            self.step(|_| {});
+            if let Some(r) = self.out.request {
+                return r.request_id;
+            }
+        }
+        panic!("no plan request");
+    }
+
+    /// Starts a mission whose plan is `steps`, parks the arm, and returns once the first leg
+    /// asked for its path (the job's id).
+    fn running_with(&mut self, steps: &[TaskStep]) -> Option<Job> {
+        let request = self.until_request();
+        let plan = plan(request, steps);
+        self.step(|i| i.plans = std::slice::from_ref(&plan));
+        // Parking the arm: the shell reports the move done.
+        for _ in 0..5 {
+            let done = matches!(self.out.arm, ArmCommand::MoveJoints(_));
+            self.step(|i| {
+                if done {
+                    i.skill = Some(Ok(SkillStatus::Done { object_held: false }));
+                }
+            });
+            if let Some(job) = self.out.job {
+                return Some(job);
+            }
+        }
+        None
+    }
+}
+
+fn plan(request: u64, steps: &[TaskStep]) -> TaskPlanMsg {
+    let mut p = TaskPlanMsg {
+        plan_id: 7,
+        stamp_ns: 0,
+        source_frame_id: 0,
+        answers_request: request,
+        utility: 1.0,
+        feasibility: 1.0,
+        cost_s: 1.0,
+        reward: 1.0,
+        object_count: 3,
+        step_count: 0,
+        decision_us: 0,
+        steps: [TaskStep::navigate(0.0, 0.0, 0.0, 0.0); MAX_TASK_STEPS],
+    };
+    p.set_steps(steps).expect("steps fit");
+    p
+}
+
+fn straight_path(from: (f64, f64), to: (f64, f64)) -> FollowerPath {
+    let mut p = FollowerPath::new();
+    p.push([from.0 as f32, from.1 as f32]).expect("room");
+    p.push([to.0 as f32, to.1 as f32]).expect("room");
+    p
+}
+
+/// A mission driving from (1, 1) to (3, 1): returns the bench once the base is moving.
+fn driving() -> Bench {
+    let mut b = Bench::new();
+    let job = b
+        .running_with(&[TaskStep::navigate(3.0, 1.0, 0.0, 6.0)])
+        .expect("a path job");
+    let Job::Path { id, from, to } = job else {
+        panic!("expected a path job, got {job:?}");
+    };
+    let answer = Answer::Path(id, Ok(straight_path(from, to)));
+    b.step(|i| i.answer = Some(&answer));
+    for _ in 0..20 {
+        b.step(|_| {});
+    }
+    assert!(
+        b.out.velocity.speed_mps > 0.05,
+        "the base drives: {:?}",
+        b.out.velocity
+    );
+    b
+}
+
+#[test]
+fn start_up_asks_for_tractor_and_rearms_once_then_asks_for_a_plan() {
+    let mut b = Bench::new();
+    b.step(|_| {});
+    assert_eq!(b.out.base_mode, Some(BaseMode::Tractor));
+    assert!(b.out.rearm_base);
+    b.step(|_| {});
+    assert_eq!(b.out.base_mode, None, "the mode is asked once");
+    assert!(!b.out.rearm_base, "the driver is re-armed once, at start");
+    assert!(b.saw(EventKind::ReplanRequested));
+    assert_eq!(b.core.state(), MissionState::Running);
+}
+
+#[test]
+fn a_plan_that_answers_another_request_is_ignored() {
+    let mut b = Bench::new();
+    let request = b.until_request();
+    let stray = plan(request + 5, &[TaskStep::navigate(3.0, 1.0, 0.0, 6.0)]);
+    b.step(|i| i.plans = std::slice::from_ref(&stray));
+    assert!(!b.saw(EventKind::PlanStarted));
+    assert_eq!(b.core.stats().plans, 0);
+}
+
+#[test]
+fn a_silent_base_aborts_stops_the_arm_once_and_holds_zero() {
+    let mut b = driving();
+    let silent: Result<Tick, BaseError> = Err(BaseError::Silent {
+        silent_for: Duration::from_millis(300),
+        timeout: Duration::from_millis(200),
+    });
+    b.step(|i| i.base_tick = Some(&silent));
+    assert_eq!(
+        b.core.state(),
+        MissionState::Aborted(AbortReason::BaseLinkLost)
+    );
+    assert_eq!(b.out.velocity, Twist::ZERO);
+    assert_eq!(b.out.arm, ArmCommand::Stop);
+    assert_eq!(b.out.abort, Some(AbortReason::BaseLinkLost));
+    assert!(b.saw(EventKind::LinkLost));
+    // Latched: later cycles keep zero and do not stop the arm again.
+    for _ in 0..50 {
+        b.step(|_| {});
+        assert_eq!(b.out.velocity, Twist::ZERO);
+        assert_eq!(b.out.arm, ArmCommand::None);
+    }
+}
+
+#[test]
+fn a_base_fault_and_a_second_commander_abort() {
+    for (error, reason) in [
+        (
+            BaseError::SecondCommander {
+                frames: 3,
+                last_id: 0x500,
+            },
+            AbortReason::SecondCommander,
+        ),
+        (
+            BaseError::Overspeed {
+                measured_mps: 1.0,
+                allowed_mps: 0.5,
+                measured_yaw_radps: 0.0,
+                allowed_yaw_radps: 0.5,
+            },
+            AbortReason::BaseFault,
+        ),
+    ] {
+        let mut b = driving();
+        let tick = Err(error);
+        b.step(|i| i.base_tick = Some(&tick));
+        assert_eq!(b.core.state(), MissionState::Aborted(reason));
+        assert_eq!(b.out.velocity, Twist::ZERO);
+    }
+}
+
+#[test]
+fn an_arm_in_protective_stop_or_a_lost_arm_link_aborts_the_mission() {
+    let mut b = driving();
+    b.step(|i| {
+        i.arm = Ok(ArmSnapshot {
+            protective_stop: true,
+            ..ArmSnapshot::default()
+        })
+    });
+    assert_eq!(
+        b.core.state(),
+        MissionState::Aborted(AbortReason::ArmStopped)
+    );
+    assert_eq!(b.out.velocity, Twist::ZERO);
+    assert_eq!(b.out.arm, ArmCommand::Stop);
+
+    let mut b = driving();
+    b.step(|i| i.arm = Err(ArmFault::LinkLost));
+    assert_eq!(
+        b.core.state(),
+        MissionState::Aborted(AbortReason::ArmLinkLost)
+    );
+    assert_eq!(b.out.velocity, Twist::ZERO);
+}
+
+#[test]
+fn missing_planner_heartbeats_abort_after_the_timeout() {
+    let mut b = driving();
+    let timeout = config().planner_timeout;
+    let mut waited = Duration::ZERO;
+    while b.core.state() == MissionState::Running {
+        b.step(|i| i.planner_heartbeats = 0);
+        waited += 20 * MS;
+        assert!(waited <= timeout + 40 * MS, "no abort after {waited:?}");
+    }
+    assert!(waited > timeout, "aborted too early, after {waited:?}");
+    assert_eq!(
+        b.core.state(),
+        MissionState::Aborted(AbortReason::PlannerLost)
+    );
+    assert_eq!(b.out.velocity, Twist::ZERO);
+}
+
+#[test]
+fn stale_localisation_holds_the_base_and_fixes_resume_it() {
+    let mut b = driving();
+    b.fixes_on = false;
+    let stale = Duration::from_nanos(config().localiser.stale_after_ns);
+    let mut held_after = None;
+    for k in 0..100u32 {
+        b.step(|_| {});
+        if b.out.velocity == Twist::ZERO {
+            held_after = Some(20 * MS * (k + 1));
+            break;
+        }
+    }
+    let held_after = held_after.expect("the base is held without fixes");
+    assert!(held_after > stale, "held before the estimate went stale");
+    assert!(b.saw(EventKind::StaleInput));
+    assert_eq!(
+        b.core.state(),
+        MissionState::Running,
+        "a hold, not an abort"
+    );
+    b.fixes_on = true;
+    b.step(|_| {});
+    b.step(|_| {});
+    assert!(
+        b.out.velocity.speed_mps > 0.0,
+        "fixes back: the leg goes on"
+    );
+}
+
+#[test]
+fn a_localisation_jump_holds_the_base_for_the_jump_hold() {
+    let mut b = driving();
+    let far = BasePoseMsg::fix(
+        1_000,
+        super::ns(b.now + 20 * MS),
+        PoseFixKind::Global,
+        [b.odo.x_m + 2.0, b.odo.y_m, b.odo.yaw_rad],
+        0.01,
+        0.01,
+    );
+    b.fixes_on = false;
+    b.step(|i| i.fixes = std::slice::from_ref(&far));
+    assert_eq!(b.out.velocity, Twist::ZERO);
+    assert!(
+        b.events
+            .iter()
+            .any(|(k, d)| *k == EventKind::StaleInput && d.contains("jumped"))
+    );
+}
+
+#[test]
+fn a_plan_that_overloads_the_tray_is_refused() {
+    let mut b = Bench::new();
+    let request = b.until_request();
+    let p = plan(
+        request,
+        &[
+            TaskStep::navigate(2.0, 1.0, 0.0, 3.0),
+            TaskStep::load(0b1111, 2.0, 1.0),
+        ],
+    );
+    b.step(|i| i.plans = std::slice::from_ref(&p));
+    assert_eq!(b.core.stats().plans, 0);
+    assert!(
+        b.events
+            .iter()
+            .any(|(k, d)| *k == EventKind::StaleInput && d.contains("tray")),
+        "{:?}",
+        b.events
+    );
+}
+
+#[test]
+fn a_travel_cost_no_duration_holds_does_not_panic() {
+    let mut b = Bench::new();
+    let job = b
+        .running_with(&[TaskStep::navigate(3.0, 1.0, 0.0, 1e30)])
+        .expect("a path job");
+    let Job::Path { id, from, to } = job else {
+        panic!("expected a path job");
+    };
+    let answer = Answer::Path(id, Ok(straight_path(from, to)));
+    b.step(|i| i.answer = Some(&answer));
+    b.step(|_| {});
+    assert_eq!(b.core.state(), MissionState::Running);
+}
+
+#[test]
+fn shutdown_and_a_lost_clock_abort() {
+    let mut b = driving();
+    b.step(|i| i.shutdown = true);
+    assert_eq!(b.core.state(), MissionState::Aborted(AbortReason::Shutdown));
+    assert_eq!(b.out.velocity, Twist::ZERO);
+    let mut b = driving();
+    b.step(|i| i.clock_lost = true);
+    assert_eq!(
+        b.core.state(),
+        MissionState::Aborted(AbortReason::ClockLost)
+    );
+}
+
+#[test]
+fn a_failed_path_fails_the_leg_and_asks_for_a_new_plan() {
+    let mut b = Bench::new();
+    let job = b
+        .running_with(&[TaskStep::navigate(3.0, 1.0, 0.0, 6.0)])
+        .expect("a path job");
+    let Job::Path { id, .. } = job else {
+        panic!("expected a path job");
+    };
+    let answer = Answer::Path(id, Err(crate::executive::worker::PathFailure::NoRoute));
+    b.step(|i| i.answer = Some(&answer));
+    assert!(b.saw(EventKind::LegFinished));
+    assert!(b.out.request.is_some(), "a new plan is asked for");
+    assert_eq!(b.out.velocity, Twist::ZERO);
+}
+
+#[test]
+fn a_fix_stamped_in_the_future_is_refused_and_staleness_still_fires() {
+    let mut b = driving();
+    // A fix from 1 h in the future: before, it was taken and every later real fix was then
+    // "older" and rejected, while the stale check (stamp-based) never fired.
+    let future = BasePoseMsg::fix(
+        9_999,
+        super::ns(b.now + Duration::from_secs(3600)),
+        PoseFixKind::Global,
+        [b.odo.x_m, b.odo.y_m, b.odo.yaw_rad],
+        0.01,
+        0.01,
+    );
+    b.fixes_on = false;
+    b.step(|i| i.fixes = std::slice::from_ref(&future));
+    assert_eq!(b.core.future_fixes(), 1);
+    assert!(
+        b.events
+            .iter()
+            .any(|(k, d)| *k == EventKind::StaleInput && d.contains("future")),
+        "{:?}",
+        b.events
+    );
+    // Real fixes still count.
+    b.fixes_on = true;
+    for _ in 0..5 {
+        b.step(|_| {});
+    }
+    assert!(
+        b.out.velocity.speed_mps > 0.0,
+        "real fixes keep the leg going"
+    );
+    // And without any fix the base is held once the stale time has passed.
+    b.fixes_on = false;
+    let mut held = false;
+    for _ in 0..80 {
+        b.step(|_| {});
+        held |= b.out.velocity == Twist::ZERO;
+    }
+    assert!(held, "no fixes: held");
+}

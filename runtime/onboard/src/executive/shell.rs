@@ -1,0 +1,541 @@
+//! The executive's I/O shell: each cycle it reads the devices and the topics into
+//! [`CycleInputs`], calls [`MissionCore::update`] once, and writes [`CycleOutputs`] to the
+//! base, the arm, the planning worker and the topics (read / update / write, as ros2_control's
+//! controller manager runs its hardware interfaces and controllers).
+//!
+//! Everything the shell keeps between cycles is allocated before the first one: the plan and
+//! fix buffers, the outputs, the worker's channels.
+
+use std::sync::Arc;
+use std::time::Duration;
+
+use can_bus::CanBus;
+use grop_clock::Clock;
+use grop_ipc::{
+    ArmSafety, ArmStateMsg, BaseMode as IpcBaseMode, BasePoseMsg, BaseStateMsg, EventMsg,
+    HeartbeatMsg, IpcNode, ProcessRole, ReplanRequestMsg, TaskPlanMsg, TopicPublisher,
+    TopicSubscriber,
+};
+use rmp_base::{BaseError, CanLink, RmpBase, Tick};
+use rmp_codec::v3::OperationalState;
+use world::Scene;
+use world::nav::OccupancyGrid;
+
+use super::base::BaseDevice;
+use super::mission::{ArmCommand, BaseReading, CycleInputs, CycleOutputs, MissionCore, ns};
+use super::unload::{self, ArmFault, SkillStatus, UnloadFailure};
+use super::worker::{Answer, Job, PathFailure, Worker};
+use super::{
+    AbortReason, ArmDevice, ArmSnapshot, ExecutiveConfig, ExecutiveError, ExecutiveStats,
+    MAX_TRAY_SLOTS, MissionState,
+};
+
+/// Most pose fixes one base cycle takes in (the world sends one or two per cycle); the rest
+/// wait in the subscriber's queue for the next cycle.
+pub const MAX_FIXES_PER_CYCLE: usize = 16;
+
+/// Most plans one base cycle takes in.
+pub const MAX_PLANS_PER_CYCLE: usize = 4;
+
+/// The topics of the executive.
+pub struct ExecutivePorts {
+    base_state: TopicPublisher<BaseStateMsg>,
+    arm_state: TopicPublisher<ArmStateMsg>,
+    events: TopicPublisher<EventMsg>,
+    requests: TopicPublisher<ReplanRequestMsg>,
+    health: TopicPublisher<HeartbeatMsg>,
+    plans: TopicSubscriber<TaskPlanMsg>,
+    poses: TopicSubscriber<BasePoseMsg>,
+    peers: TopicSubscriber<HeartbeatMsg>,
+}
+
+impl ExecutivePorts {
+    /// Opens the executive's topics in `node`.
+    pub fn open(node: &IpcNode) -> Result<Self, ExecutiveError> {
+        let e = |e: grop_ipc::PortError| ExecutiveError::Ipc(e.to_string());
+        Ok(Self {
+            base_state: node.publisher().map_err(e)?,
+            arm_state: node.publisher().map_err(e)?,
+            events: node.publisher().map_err(e)?,
+            requests: node.publisher().map_err(e)?,
+            health: node.publisher().map_err(e)?,
+            plans: node.subscriber().map_err(e)?,
+            poses: node.subscriber().map_err(e)?,
+            peers: node.subscriber().map_err(e)?,
+        })
+    }
+}
+
+/// The executive process's state: the core, the devices, the ports, the worker.
+pub struct Executive<D: BaseDevice, A: ArmDevice> {
+    core: MissionCore,
+    cycle_period: Duration,
+    base_every: u32,
+    heartbeat_period: Duration,
+    clock: Arc<dyn Clock>,
+    base: D,
+    arm: A,
+    ports: ExecutivePorts,
+    worker: Worker,
+    outputs: CycleOutputs,
+    fixes: Vec<BasePoseMsg>,
+    plans: Vec<TaskPlanMsg>,
+    /// An answer of the worker, or one the shell made for a job it could not hand over.
+    answer: Option<Answer>,
+    /// The base driver's last tick, for the next update.
+    pending_tick: Option<Result<Tick, BaseError>>,
+    arm_snapshot: ArmSnapshot,
+    /// The arm's state read this cycle.
+    arm_reading: Result<ArmSnapshot, ArmFault>,
+    /// The skill in flight's result read this cycle.
+    skill_reading: Option<Result<SkillStatus, ArmFault>>,
+    /// Planner heartbeats read this base cycle.
+    planner_heartbeats: u32,
+    /// A skill was started and has not reported done or failed.
+    skill_in_flight: bool,
+    /// The arm refused the start of the skill in flight.
+    start_refused: Option<ArmFault>,
+    base_seq: u64,
+    arm_seq: u64,
+    heartbeat_seq: u64,
+    next_heartbeat: Duration,
+    stats: ExecutiveStats,
+    /// Wake-up lateness of the minor cycle (allocation-free histogram).
+    loop_stats: grop_clock::rt::LoopStats,
+}
+
+/// The executive on the Segway RMP over a CAN bus `B`, as the robot runs it.
+pub type RmpExecutive<B, A> = Executive<RmpBase<CanLink<B>>, A>;
+
+/// The RMP driver's configuration for the robot file's limits (the follower plans within them;
+/// the driver's limiter enforces them).
+fn rmp_config(config: &ExecutiveConfig) -> rmp_base::RmpBaseConfig {
+    let mut base_config = rmp_base::RmpBaseConfig {
+        command_period: config.cycle * config.base_every,
+        ..rmp_base::RmpBaseConfig::default()
+    };
+    base_config.limits.max_forward_mps = config.robot.speed_mps as f32;
+    base_config.limits.max_reverse_mps = (0.5 * config.robot.speed_mps) as f32;
+    base_config.limits.max_yaw_rate_radps = config.robot.yaw_rate_radps as f32;
+    base_config.limits.max_accel_mps2 = config.robot.accel_mps2 as f32;
+    base_config.limits.max_decel_mps2 = config.robot.accel_mps2 as f32;
+    base_config.limits.max_yaw_accel_radps2 = config.robot.yaw_accel_radps2 as f32;
+    base_config
+}
+
+impl<B: CanBus, A: ArmDevice> Executive<RmpBase<CanLink<B>>, A> {
+    /// Builds the executive on the RMP base over `bus`: configures the driver from the robot
+    /// file, opens its topics in `node`, then as [`Executive::with_devices`].
+    pub fn new(
+        config: ExecutiveConfig,
+        clock: Arc<dyn Clock>,
+        bus: B,
+        arm: A,
+        node: &IpcNode,
+        scene: Scene,
+        objects: usize,
+    ) -> Result<Self, ExecutiveError> {
+        check_capacity(&config)?;
+        let base = RmpBase::new(CanLink::new(bus), rmp_config(&config))
+            .map_err(|e| ExecutiveError::BaseConfig(e.to_string()))?;
+        let ports = ExecutivePorts::open(node)?;
+        Executive::with_devices(config, clock, base, arm, ports, scene, objects)
+    }
+}
+
+fn check_capacity(config: &ExecutiveConfig) -> Result<(), ExecutiveError> {
+    let tray_slots = config.tray_slots.len().min(MAX_TRAY_SLOTS);
+    if config.robot.carry_capacity as usize > tray_slots {
+        return Err(ExecutiveError::CarryCapacity {
+            carry_capacity: config.robot.carry_capacity,
+            tray_slots,
+        });
+    }
+    Ok(())
+}
+
+impl<D: BaseDevice, A: ArmDevice> Executive<D, A> {
+    /// Builds the executive on devices and ports opened by the caller: solves the tray, builds
+    /// the map, starts the path worker. `objects` is the number of objects of the task.
+    pub fn with_devices(
+        config: ExecutiveConfig,
+        clock: Arc<dyn Clock>,
+        base: D,
+        arm: A,
+        ports: ExecutivePorts,
+        scene: Scene,
+        objects: usize,
+    ) -> Result<Self, ExecutiveError> {
+        check_capacity(&config)?;
+        let tray = unload::solve_tray(&config.robot.place, &config.tray_slots)
+            .map_err(ExecutiveError::Tray)?;
+        let grid = Arc::new(OccupancyGrid::from_scene(&scene, &config.robot));
+        // Paths keep a margin from furniture where the map allows: the base follows its estimate,
+        // which is off by the localisation error.
+        let mut grids: Vec<Arc<OccupancyGrid>> = [1.0, 0.5]
+            .iter()
+            .filter(|_| config.path_clearance_m > 0.0)
+            .map(|share| {
+                let mut careful = config.robot.clone();
+                careful.footprint.length_m += 2.0 * share * config.path_clearance_m;
+                careful.footprint.width_m += 2.0 * share * config.path_clearance_m;
+                Arc::new(OccupancyGrid::from_scene(&scene, &careful))
+            })
+            .collect();
+        grids.push(Arc::clone(&grid));
+        let worker = Worker::start(
+            grids,
+            scene.clone(),
+            config.robot.clone(),
+            Arc::clone(&clock),
+        )
+        .map_err(ExecutiveError::Worker)?;
+        let (cycle_period, base_every, heartbeat_period) =
+            (config.cycle, config.base_every, config.heartbeat_period);
+        Ok(Self {
+            core: MissionCore::new(config, grid, tray, objects),
+            cycle_period,
+            base_every,
+            heartbeat_period,
+            clock,
+            base,
+            arm,
+            ports,
+            worker,
+            outputs: CycleOutputs::default(),
+            fixes: Vec::with_capacity(MAX_FIXES_PER_CYCLE),
+            plans: Vec::with_capacity(MAX_PLANS_PER_CYCLE),
+            answer: None,
+            pending_tick: None,
+            arm_snapshot: ArmSnapshot::default(),
+            arm_reading: Ok(ArmSnapshot::default()),
+            skill_reading: None,
+            planner_heartbeats: 0,
+            skill_in_flight: false,
+            start_refused: None,
+            base_seq: 0,
+            arm_seq: 0,
+            heartbeat_seq: 0,
+            next_heartbeat: Duration::ZERO,
+            stats: ExecutiveStats::default(),
+            loop_stats: grop_clock::rt::LoopStats::new(cycle_period),
+        })
+    }
+
+    /// The mission state.
+    pub fn state(&self) -> MissionState {
+        self.core.state()
+    }
+
+    /// Counters.
+    pub fn stats(&self) -> ExecutiveStats {
+        let core = self.core.stats();
+        ExecutiveStats {
+            unloads_ok: core.unloads_ok,
+            unloads_failed: core.unloads_failed,
+            plans: core.plans,
+            ..self.stats
+        }
+    }
+
+    /// How late the minor cycle woke (p50 / p99 / max) and its overruns.
+    pub fn loop_summary(&self) -> grop_clock::rt::LoopSummary {
+        self.loop_stats.summary()
+    }
+
+    /// The base device (tests inspect it).
+    pub fn base(&self) -> &D {
+        &self.base
+    }
+
+    /// The mission core (tests inspect it).
+    pub fn core(&self) -> &MissionCore {
+        &self.core
+    }
+
+    /// Runs cycles until `keep_going` says stop, the mission ends and `exit_when_done` is set,
+    /// or the clock is lost. Returns the final state.
+    pub fn run(&mut self, keep_going: &dyn Fn() -> bool, exit_when_done: bool) -> MissionState {
+        self.clock.wait_turn();
+        let mut deadline = self.clock.now();
+        loop {
+            if !keep_going() {
+                self.abort_now(AbortReason::Shutdown, deadline);
+                // A few more base periods so the zero command reaches the base.
+                for _ in 0..5 * self.base_every {
+                    deadline += self.cycle_period;
+                    self.clock.sleep_until(deadline);
+                    self.cycle(deadline);
+                }
+                return self.state();
+            }
+            if self.clock.is_lost() {
+                self.abort_now(AbortReason::ClockLost, deadline);
+                return self.state();
+            }
+            self.cycle(deadline);
+            if exit_when_done
+                && matches!(
+                    self.state(),
+                    MissionState::Finished | MissionState::Aborted(_)
+                )
+            {
+                return self.state();
+            }
+            deadline += self.cycle_period;
+            if self.clock.now() > deadline {
+                self.stats.overruns += 1;
+                // Far behind: skip ahead rather than burst.
+                let now = self.clock.now();
+                if now > deadline + 5 * self.cycle_period {
+                    deadline = now;
+                }
+            }
+            self.clock.sleep_until(deadline);
+            self.loop_stats.record(deadline, self.clock.now());
+        }
+    }
+
+    /// Aborts at once, outside a cycle: zero velocity target, the arm stopped, the events out.
+    fn abort_now(&mut self, reason: AbortReason, now: Duration) {
+        self.outputs.clear();
+        self.core.abort(reason, now, &mut self.outputs);
+        self.base.set_velocity(self.outputs.velocity, now);
+        self.write_arm(now);
+        self.write_messages();
+    }
+
+    /// One minor cycle at `now`: read, update, write (public so tests can step it).
+    pub fn cycle(&mut self, now: Duration) {
+        self.stats.cycles += 1;
+        let base_cycle =
+            self.base_every <= 1 || self.stats.cycles % u64::from(self.base_every.max(1)) == 1;
+        self.read(now, base_cycle);
+        let tick = self.pending_tick.take();
+        let inputs = CycleInputs {
+            now,
+            base_cycle,
+            base: BaseReading {
+                odometry: self.base.odometry(),
+                driving: self.base.is_driving(),
+            },
+            base_tick: tick.as_ref(),
+            arm: self.arm_reading,
+            skill: self.skill_reading,
+            fixes: &self.fixes,
+            plans: &self.plans,
+            planner_heartbeats: self.planner_heartbeats,
+            answer: self.answer.as_ref(),
+            shutdown: false,
+            clock_lost: false,
+            monitor: super::MonitorState::Clear,
+            operator_enable: true,
+        };
+        self.outputs.clear();
+        self.core.update(&inputs, &mut self.outputs);
+        if base_cycle {
+            // The core reads answers on base cycles only.
+            self.answer = None;
+        }
+        self.write(now, base_cycle);
+    }
+}
+
+impl<D: BaseDevice, A: ArmDevice> Executive<D, A> {
+    /// Read: the arm every cycle (its state, then the skill in flight); on base cycles the
+    /// fixes, heartbeats, plans and the worker's answer.
+    fn read(&mut self, now: Duration, base_cycle: bool) {
+        self.arm_reading = self.arm.update(now);
+        if let Ok(s) = self.arm_reading {
+            self.arm_snapshot = s;
+        }
+        self.skill_reading = None;
+        if self.skill_in_flight {
+            let result = match self.start_refused.take() {
+                Some(fault) => Err(fault),
+                None => self.arm.poll(now),
+            };
+            if !matches!(result, Ok(SkillStatus::Running)) {
+                self.skill_in_flight = false;
+            }
+            self.skill_reading = Some(result);
+        }
+        if !base_cycle {
+            return;
+        }
+        self.fixes.clear();
+        while self.fixes.len() < MAX_FIXES_PER_CYCLE {
+            match self.ports.poses.try_recv() {
+                Ok(Some(fix)) => self.fixes.push(*fix),
+                _ => break,
+            }
+        }
+        self.planner_heartbeats = 0;
+        while let Ok(Some(hb)) = self.ports.peers.try_recv() {
+            if hb.role() == Ok(ProcessRole::Planner) {
+                self.planner_heartbeats += 1;
+            }
+        }
+        self.plans.clear();
+        while let Ok(Some(plan)) = self.ports.plans.try_recv() {
+            if self.plans.len() == MAX_PLANS_PER_CYCLE {
+                // Newest last: drop the oldest.
+                self.plans.remove(0);
+            }
+            self.plans.push(*plan);
+        }
+        if self.answer.is_none() {
+            self.answer = self.worker.try_answer();
+        }
+    }
+
+    /// Write: the arm command, the worker job, the base's mode, velocity and tick (base cycles),
+    /// then the messages.
+    fn write(&mut self, now: Duration, base_cycle: bool) {
+        self.write_arm(now);
+        if let Some(job) = self.outputs.job.take() {
+            self.submit(job);
+        }
+        if let Some(mode) = self.outputs.base_mode {
+            self.base.request_mode(mode, now);
+        }
+        if self.outputs.rearm_base {
+            self.base.rearm();
+        }
+        self.write_messages();
+        self.publish_arm_state(now);
+        if base_cycle {
+            self.base.set_velocity(self.outputs.velocity, now);
+            let tick = self.base.tick(now);
+            self.publish_base_state(now, &tick);
+            self.pending_tick = Some(tick);
+        }
+        if now >= self.next_heartbeat {
+            self.next_heartbeat = now + self.heartbeat_period;
+            self.heartbeat_seq += 1;
+            let (seq, overruns) = (self.heartbeat_seq, self.stats.overruns);
+            self.stats.published += 1;
+            let _ = self.ports.health.publish_with(|h| {
+                h.seq = seq;
+                h.stamp_ns = ns(now);
+                h.set_role(ProcessRole::Executive);
+                h.pid = std::process::id();
+                h.overruns = overruns;
+            });
+        }
+    }
+
+    fn write_arm(&mut self, now: Duration) {
+        let started = match self.outputs.arm {
+            ArmCommand::None => return,
+            ArmCommand::Stop => {
+                self.arm.stop(now);
+                self.skill_in_flight = false;
+                self.start_refused = None;
+                return;
+            }
+            ArmCommand::MoveJoints(q) => self.arm.start_move_joints(&q, now),
+            ArmCommand::Gripper(close) => self.arm.start_gripper(close, now),
+        };
+        self.skill_in_flight = true;
+        self.start_refused = started.err();
+    }
+
+    /// Hands a job to the worker; one it cannot take is answered as failed for the next update.
+    fn submit(&mut self, job: Job) {
+        match self.worker.submit(job) {
+            Ok(true) => {}
+            refused => {
+                let gone = matches!(refused, Err(PathFailure::WorkerGone));
+                self.answer = Some(match job {
+                    Job::Path { id, .. } => Answer::Path(
+                        id,
+                        Err(if gone {
+                            PathFailure::WorkerGone
+                        } else {
+                            PathFailure::NoRoute
+                        }),
+                    ),
+                    Job::Unload { id, .. } => Answer::Unload(id, Err(UnloadFailure::NoArmPath)),
+                });
+            }
+        }
+    }
+
+    fn write_messages(&mut self) {
+        if let Some(req) = self.outputs.request.take() {
+            self.stats.published += 1;
+            let _ = self.ports.requests.publish(&req);
+        }
+        for event in &self.outputs.events {
+            self.stats.published += 1;
+            let _ = self.ports.events.publish(event);
+        }
+        self.outputs.events.clear();
+        if self.outputs.events_dropped > 0 {
+            log::warn!(
+                "{} events of one cycle did not fit the outputs",
+                self.outputs.events_dropped
+            );
+        }
+    }
+
+    fn publish_arm_state(&mut self, now: Duration) {
+        self.arm_seq += 1;
+        let (seq, s) = (self.arm_seq, self.arm_snapshot);
+        self.stats.published += 1;
+        let _ = self.ports.arm_state.publish_with(|m| {
+            m.seq = seq;
+            m.stamp_ns = ns(now);
+            m.joints_rad = s.q_rad;
+            m.joint_speeds_radps = s.qd_radps;
+            m.flange_pose = s.flange_pose;
+            m.robot_mode = s.robot_mode;
+            m.program_running = u8::from(s.program_running);
+            m.connected = 1;
+            m.set_safety(if s.emergency_stop {
+                ArmSafety::EmergencyStop
+            } else if s.protective_stop {
+                ArmSafety::ProtectiveStop
+            } else {
+                ArmSafety::Normal
+            });
+        });
+    }
+
+    fn publish_base_state(&mut self, now: Duration, tick: &Result<Tick, BaseError>) {
+        let odo = self.base.odometry();
+        let est = self.core.estimate();
+        let status = self.base.status();
+        let commanded = tick
+            .as_ref()
+            .map(|t| t.commanded)
+            .unwrap_or(motion_control::Twist::ZERO);
+        let watchdog = tick.as_ref().map(|t| t.input_stale).unwrap_or(true);
+        let link_up = !matches!(tick, Err(BaseError::Silent { .. }));
+        self.base_seq += 1;
+        let seq = self.base_seq;
+        self.stats.published += 1;
+        let _ = self.ports.base_state.publish_with(|m| {
+            m.seq = seq;
+            m.stamp_ns = ns(now);
+            m.x_m = est.x_m;
+            m.y_m = est.y_m;
+            m.yaw_rad = est.yaw_rad;
+            m.speed_mps = odo.speed_mps;
+            m.yaw_rate_radps = odo.yaw_rate_radps;
+            m.commanded_speed_mps = f64::from(commanded.speed_mps);
+            m.commanded_yaw_rate_radps = f64::from(commanded.yaw_rate_radps);
+            m.set_mode(match status.state {
+                Some(OperationalState::Tractor) => IpcBaseMode::Tractor,
+                Some(OperationalState::Standby) => IpcBaseMode::Standby,
+                Some(OperationalState::DisablePower) => IpcBaseMode::Disabled,
+                Some(_) => IpcBaseMode::DecelToZero,
+                None => IpcBaseMode::Unknown,
+            });
+            m.fault_bits = status.faults.words()[0];
+            m.link_up = u8::from(link_up);
+            m.watchdog_stopped = u8::from(watchdog);
+        });
+    }
+}
