@@ -78,7 +78,7 @@ pub struct Args {
     /// Simulated time limit of the mission, s.
     #[arg(long, default_value_t = 600.0)]
     pub max_sim_s: f64,
-    /// Inject a fault into the closed loop: KIND, KIND@driving, KIND@arm or KIND@SECONDS
+    /// Inject a fault into the closed loop: KIND, KIND@driving, KIND@arm, KIND@gripping or KIND@SECONDS
     /// (e.g. `can-silent`, `second-commander`, `rtde-silent`; docs/reliability.md lists all).
     #[arg(long, value_name = "KIND[@WHEN]")]
     pub fault: Option<hil_world::faults::FaultSpec>,

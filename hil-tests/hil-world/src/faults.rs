@@ -133,9 +133,11 @@ impl FaultKind {
             | FaultKind::RtdeSilent
             | FaultKind::ProtectiveStop
             | FaultKind::EmergencyStop
-            | FaultKind::GripperFault
             | FaultKind::GripperTimeout
             | FaultKind::DashboardLate => Trigger::ArmMoving,
+            // Injected while the gripper is idle, the fault is cleared by the unload's
+            // activation (as a Robotiq's is): strike while it works.
+            FaultKind::GripperFault => Trigger::Gripping,
             FaultKind::CameraCorrupt => Trigger::At(Duration::ZERO),
             _ => Trigger::Driving,
         }
@@ -156,11 +158,14 @@ pub enum Trigger {
     Driving,
     /// The first time a joint moves faster than 0.3 rad/s.
     ArmMoving,
+    /// The first time a joint moves faster than 0.3 rad/s while the gripper is activated (the
+    /// arm at work on an object: a gripper fault before activation is cleared by it).
+    Gripping,
     /// This long after the mission started (simulated).
     At(Duration),
 }
 
-/// One fault of one mission: `KIND` or `KIND@driving`, `KIND@arm`, `KIND@SECONDS`.
+/// One fault of one mission: `KIND` or `KIND@driving`, `KIND@arm`, `KIND@gripping`, `KIND@SECONDS`.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct FaultSpec {
     /// What.
@@ -196,6 +201,7 @@ impl FromStr for FaultSpec {
             None => kind.default_trigger(),
             Some("driving") => Trigger::Driving,
             Some("arm") => Trigger::ArmMoving,
+            Some("gripping") => Trigger::Gripping,
             Some(t) => match t.parse::<f64>() {
                 Ok(s) if s.is_finite() && (0.0..1e6).contains(&s) => {
                     Trigger::At(Duration::from_secs_f64(s))
@@ -212,6 +218,7 @@ impl fmt::Display for FaultSpec {
         match self.trigger {
             Trigger::Driving => write!(f, "{}@driving", self.kind),
             Trigger::ArmMoving => write!(f, "{}@arm", self.kind),
+            Trigger::Gripping => write!(f, "{}@gripping", self.kind),
             Trigger::At(t) => write!(f, "{}@{}", self.kind, t.as_secs_f64()),
         }
     }

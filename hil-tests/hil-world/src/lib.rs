@@ -429,6 +429,7 @@ impl World {
             }
             injector.base_speed = f64::from(v).abs();
             injector.arm_speed = max_abs(&snap.qd);
+            injector.gripper_active = self.arm.with_robot(|r| r.gripper.is_active());
             let place = &cfg.robot.place;
             let flange = world_from_base * place.mount.base_from_arm() * place.arm.forward(&snap.q);
             let tcp = flange * Point3::new(0.0, 0.0, place.tcp_offset_m);
@@ -862,6 +863,7 @@ impl World {
             let due = match spec.trigger {
                 Trigger::Driving => inj.base_speed > 0.3,
                 Trigger::ArmMoving => inj.arm_speed > 0.3,
+                Trigger::Gripping => inj.arm_speed > 0.3 && inj.gripper_active,
                 Trigger::At(t) => now >= start + t,
             };
             if !due {
@@ -968,6 +970,8 @@ struct Injector {
     /// Base and arm speed at the last step (the triggers).
     base_speed: f64,
     arm_speed: f64,
+    /// The gripper is activated (at work on an object), at the last step.
+    gripper_active: bool,
     burst_until: Option<Duration>,
     intruder: Option<(VirtualCanBus, Duration)>,
     intruder_next: Duration,

@@ -57,6 +57,11 @@ impl GripperModel {
             .map(|w| 255.0 * (1.0 - w / STROKE_M))
     }
 
+    /// Activated (STA = 3): the gripper can be at work on an object.
+    pub fn is_active(&self) -> bool {
+        self.sta == 3
+    }
+
     /// Fault injection: FLT reads `code` and the fingers stop until the next activation.
     pub fn inject_fault(&mut self, code: u8) {
         self.flt = code;

@@ -374,18 +374,33 @@ fn a_plan_that_overloads_the_tray_is_refused() {
 }
 
 #[test]
-fn a_travel_cost_no_duration_holds_does_not_panic() {
-    let mut b = Bench::new();
-    let job = b
-        .running_with(&[TaskStep::navigate(3.0, 1.0, 0.0, 1e30)])
-        .expect("a path job");
-    let Job::Path { id, from, to } = job else {
-        panic!("expected a path job");
-    };
-    let answer = Answer::Path(id, Ok(straight_path(from, to)));
-    b.step(|i| i.answer = Some(&answer));
-    b.step(|_| {});
-    assert_eq!(b.core.state(), MissionState::Running);
+fn plans_with_numbers_the_robot_cannot_do_are_refused_and_name_the_step() {
+    for (steps, says) in [
+        (vec![TaskStep::navigate(3.0, 1.0, 0.0, 1e30)], "travel cost"),
+        (vec![TaskStep::navigate(3.0, 1.0, 0.0, -1.0)], "travel cost"),
+        (vec![TaskStep::navigate(1e6, 1.0, 0.0, 6.0)], "off the map"),
+        (
+            vec![
+                TaskStep::navigate(2.0, 1.0, 0.0, 3.0),
+                TaskStep::load(1 << 9, 2.0, 1.0),
+            ],
+            "object 9 of a task of 3",
+        ),
+    ] {
+        let mut b = Bench::new();
+        let request = b.until_request();
+        let p = plan(request, &steps);
+        b.step(|i| i.plans = std::slice::from_ref(&p));
+        assert_eq!(b.core.stats().plans, 0, "{steps:?} taken");
+        assert!(
+            b.events
+                .iter()
+                .any(|(k, d)| *k == EventKind::StaleInput && d.contains(says)),
+            "{says}: {:?}",
+            b.events
+        );
+        assert_eq!(b.out.velocity, Twist::ZERO);
+    }
 }
 
 #[test]
