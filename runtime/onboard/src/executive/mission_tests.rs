@@ -35,12 +35,16 @@ fn config() -> ExecutiveConfig {
 
 impl Bench {
     fn new() -> Self {
+        Self::with_objects(3)
+    }
+
+    fn with_objects(objects: usize) -> Self {
         let config = config();
         let scene = Scene::empty_paper_room();
         let grid = Arc::new(OccupancyGrid::from_scene(&scene, &config.robot));
         let tray = solve_tray(&config.robot.place, &config.tray_slots).expect("tray");
         Self {
-            core: MissionCore::new(config, grid, tray, 3),
+            core: MissionCore::new(config, grid, tray, objects),
             out: CycleOutputs::default(),
             now: Duration::ZERO,
             odo: rmp_base::Odometry {
@@ -353,7 +357,7 @@ fn a_localisation_jump_holds_the_base_for_the_jump_hold() {
 
 #[test]
 fn a_plan_that_overloads_the_tray_is_refused() {
-    let mut b = Bench::new();
+    let mut b = Bench::with_objects(5);
     let request = b.until_request();
     let p = plan(
         request,
