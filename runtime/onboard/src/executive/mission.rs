@@ -30,6 +30,20 @@ use super::worker::{Answer, Job, MAX_PATH_POINTS};
 use super::{AbortReason, ArmSnapshot, ExecutiveConfig, MAX_TRAY_SLOTS, MissionState};
 use crate::localisation::{FixOutcome, Localiser, PlanarPose};
 
+/// The arm must reach its carry pose within this.
+const PARKING_TIMEOUT: Duration = Duration::from_secs(20);
+
+/// Where the arm is on its way to the carry pose.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Parking {
+    /// Not asked yet.
+    NotStarted,
+    /// Moving since then.
+    Moving { since: Duration },
+    /// In the carry pose.
+    Parked,
+}
+
 /// The longest leg a plan may ask for, s (an hour: no table-setting leg comes near it).
 pub const MAX_TRAVEL_COST_S: f64 = 3600.0;
 
@@ -270,8 +284,6 @@ pub(super) enum Phase {
         distance_m: f64,
         deadline: Duration,
     },
-    /// Moving the arm to its carry pose before the base first drives.
-    ParkingArm { started: bool, since: Duration },
     /// The worker plans the unload's arm motions.
     PlanningArm {
         id: u64,
@@ -334,8 +346,9 @@ pub struct MissionCore {
     pub(super) dock: Option<[f64; 3]>,
     /// The last step done was at the table: back out before the next leg.
     pub(super) at_table: bool,
-    /// The arm is in its carry pose (done once before the first leg).
-    arm_parked: bool,
+    /// The arm's way to its carry pose (once, while the first plan is asked for, before the
+    /// base first drives).
+    parking: Parking,
     /// Legs failed in a row.
     pub(super) failed_legs: u32,
     /// The unload in progress (in place: a new one overwrites it, nothing is allocated).
@@ -395,7 +408,7 @@ impl MissionCore {
             tray,
             dock: None,
             at_table: false,
-            arm_parked: false,
+            parking: Parking::NotStarted,
             failed_legs: 0,
             unload: None,
             plan_id: 0,
@@ -609,6 +622,8 @@ impl MissionCore {
                 if inputs.base.driving && self.localiser.is_initialised() {
                     self.state = MissionState::Running;
                     self.request_plan(ReplanReason::MissionStart, now, None, outputs);
+                    // The arm goes to its carry pose while the plan is worked out.
+                    self.park_arm(now, outputs);
                 }
             }
             MissionState::Running => self.mission_step(inputs, outputs),
@@ -876,6 +891,9 @@ impl MissionCore {
 
     fn mission_pass(&mut self, inputs: &CycleInputs<'_>, outputs: &mut CycleOutputs) {
         let now = inputs.now;
+        if !self.park_arm(now, outputs) {
+            return; // the arm on its way to the carry pose: the base holds still
+        }
         if self.request_sent.is_some() {
             return; // waiting for a plan: hold still
         }
@@ -894,17 +912,7 @@ impl MissionCore {
         let kind = step.kind();
         let pose = self.localiser.estimate();
         let phase = self.phase.take();
-        if !self.arm_parked && phase.is_none() {
-            self.phase = Some(Phase::ParkingArm {
-                started: false,
-                since: now,
-            });
-            return;
-        }
         self.phase = match (kind, phase) {
-            (Ok(_), Some(Phase::ParkingArm { started, since })) => {
-                self.park_arm(started, since, now, outputs)
-            }
             (Ok(TaskStepKind::Load), None) => Some(Phase::Loading {
                 until: now + self.config.load_wait,
             }),
@@ -961,42 +969,32 @@ impl MissionCore {
         };
     }
 
-    fn park_arm(
-        &mut self,
-        started: bool,
-        since: Duration,
-        now: Duration,
-        outputs: &mut CycleOutputs,
-    ) -> Option<Phase> {
-        if !started {
-            outputs.arm = ArmCommand::MoveJoints(self.tray.carry);
-            self.skill_result = None;
-            return Some(Phase::ParkingArm {
-                started: true,
-                since,
-            });
-        }
-        match self.skill_result.take() {
-            Some(Ok(SkillStatus::Done { .. })) => {
-                self.arm_parked = true;
-                None
+    /// Moves the arm to its carry pose once, before the base first drives; true once it is
+    /// there. It starts as soon as the mission runs, so it overlaps the wait for the first plan.
+    fn park_arm(&mut self, now: Duration, outputs: &mut CycleOutputs) -> bool {
+        match self.parking {
+            Parking::Parked => true,
+            Parking::NotStarted => {
+                outputs.arm = ArmCommand::MoveJoints(self.tray.carry);
+                self.skill_result = None;
+                self.parking = Parking::Moving { since: now };
+                false
             }
-            Some(Err(_)) => {
-                self.abort(AbortReason::ArmStopped, now, outputs);
-                None
-            }
-            Some(Ok(SkillStatus::Running)) | None
-                if now.saturating_sub(since) < Duration::from_secs(20) =>
-            {
-                Some(Phase::ParkingArm {
-                    started: true,
-                    since,
-                })
-            }
-            Some(Ok(SkillStatus::Running)) | None => {
-                self.abort(AbortReason::ArmStopped, now, outputs);
-                None
-            }
+            Parking::Moving { since } => match self.skill_result.take() {
+                Some(Ok(SkillStatus::Done { .. })) => {
+                    self.parking = Parking::Parked;
+                    true
+                }
+                Some(Ok(SkillStatus::Running)) | None
+                    if now.saturating_sub(since) < PARKING_TIMEOUT =>
+                {
+                    false
+                }
+                Some(Err(_)) | Some(Ok(SkillStatus::Running)) | None => {
+                    self.abort(AbortReason::ArmStopped, now, outputs);
+                    false
+                }
+            },
         }
     }
 

@@ -120,16 +120,22 @@ impl Bench {
     /// asked for its path (the job's id).
     fn running_with(&mut self, steps: &[TaskStep]) -> Option<Job> {
         let request = self.until_request();
+        // The arm parks while the plan is worked out: the shell reports the move done.
+        assert_eq!(
+            self.out.arm,
+            ArmCommand::MoveJoints(self.core.tray.carry),
+            "parking starts with the first plan request"
+        );
         let plan = plan(request, steps);
-        self.step(|i| i.plans = std::slice::from_ref(&plan));
-        // Parking the arm: the shell reports the move done.
+        self.step(|i| {
+            i.plans = std::slice::from_ref(&plan);
+            i.skill = Some(Ok(SkillStatus::Done { object_held: false }));
+        });
+        if let Some(job) = self.out.job {
+            return Some(job);
+        }
         for _ in 0..5 {
-            let done = matches!(self.out.arm, ArmCommand::MoveJoints(_));
-            self.step(|i| {
-                if done {
-                    i.skill = Some(Ok(SkillStatus::Done { object_held: false }));
-                }
-            });
+            self.step(|_| {});
             if let Some(job) = self.out.job {
                 return Some(job);
             }
@@ -477,4 +483,38 @@ fn a_fix_stamped_in_the_future_is_refused_and_staleness_still_fires() {
         held |= b.out.velocity == Twist::ZERO;
     }
     assert!(held, "no fixes: held");
+}
+
+#[test]
+fn the_base_holds_still_until_the_arm_is_parked_and_then_leaves_in_the_same_cycle() {
+    let mut b = Bench::new();
+    let request = b.until_request();
+    assert_eq!(b.out.arm, ArmCommand::MoveJoints(b.core.tray.carry));
+    let p = plan(request, &[TaskStep::navigate(3.0, 1.0, 0.0, 6.0)]);
+    b.step(|i| {
+        i.plans = std::slice::from_ref(&p);
+        i.skill = Some(Ok(SkillStatus::Running));
+    });
+    for _ in 0..20 {
+        b.step(|i| i.skill = Some(Ok(SkillStatus::Running)));
+        assert_eq!(b.out.velocity, Twist::ZERO, "the arm is still moving");
+        assert!(b.out.job.is_none(), "no leg before the arm is parked");
+    }
+    b.step(|i| i.skill = Some(Ok(SkillStatus::Done { object_held: false })));
+    assert!(
+        matches!(b.out.job, Some(Job::Path { .. })),
+        "parked: the leg's path is asked for in the same cycle"
+    );
+}
+
+#[test]
+fn an_arm_that_fails_to_park_aborts() {
+    let mut b = Bench::new();
+    let _ = b.until_request();
+    b.step(|i| i.skill = Some(Err(ArmFault::SkillFailed)));
+    assert_eq!(
+        b.core.state(),
+        MissionState::Aborted(AbortReason::ArmStopped)
+    );
+    assert_eq!(b.out.velocity, Twist::ZERO);
 }
