@@ -30,6 +30,7 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 
+pub mod external_control;
 pub mod fields;
 pub mod gripper;
 pub mod primary;
@@ -45,7 +46,7 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::thread::JoinHandle;
 use std::time::Duration;
 
-pub use robot::{RobotInit, Snapshot};
+pub use robot::{EXTERNAL_CONTROL_PROGRAM, RTDE_CONTROL_PROGRAM, RobotInit, Snapshot};
 pub use server::PortKind;
 use server::{Shared, lock};
 pub use stepping::{StepError, StepReport, Stepping};
@@ -86,6 +87,9 @@ pub struct SimConfig {
     /// Who advances the controller: its own wall-clock thread, or the owner through
     /// [`Ur5eSim::step`] (lock-step HIL).
     pub stepping: Stepping,
+    /// The External Control URCap's script sender (URCL, default port 50002): dashboard
+    /// `play` of a loaded program asks it for the External Control program and runs it.
+    pub urcap_script_sender: Option<SocketAddr>,
 }
 
 impl Default for SimConfig {
@@ -112,6 +116,7 @@ impl Default for SimConfig {
             init: RobotInit::default(),
             gripper_object_width_m: None,
             stepping: Stepping::WallClock,
+            urcap_script_sender: None,
         }
     }
 }
