@@ -157,7 +157,7 @@ def _():
     goal = [1.5, -1.2, 1.3, -1.6, -1.4, 0.2]
     assert c.moveJ(goal, 0.5, 1.0, True) is True
     time.sleep(0.5)
-    assert c.stopJ(2.0) is True
+    c.stopJ(2.0)  # returns None in ur_rtde 1.6.5's binding
     q = r.getActualQ()
     time.sleep(0.1)
     assert max(abs(v) for v in r.getActualQd()) < 1e-3, r.getActualQd()
