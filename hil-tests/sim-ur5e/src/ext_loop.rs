@@ -261,7 +261,10 @@ impl RobotModel {
         if let Some(e) = self.ext(session) {
             e.results.push(r);
         }
-        self.log(3, format!("ExternalControl: trajectory finished with result {name}"));
+        self.log(
+            3,
+            format!("ExternalControl: trajectory finished with result {name}"),
+        );
     }
 
     fn external_cancel(&mut self, session: u64) {
@@ -404,7 +407,13 @@ impl RobotModel {
                 match e.queue.pop_front() {
                     Some(p) => {
                         e.points_left -= 1;
-                        Next::Point(Box::new(p), e.mult_joint, e.mult_time, e.spline_qd, e.spline_qdd)
+                        Next::Point(
+                            Box::new(p),
+                            e.mult_joint,
+                            e.mult_time,
+                            e.spline_qd,
+                            e.spline_qdd,
+                        )
                     }
                     None if now - e.waiting_point_since_s > POINT_TIMEOUT_S => {
                         e.trajectory_running = false;
@@ -425,7 +434,10 @@ impl RobotModel {
                 return;
             }
             Next::TimedOut => {
-                self.log(1, "ExternalControl: receiving trajectory point failed".into());
+                self.log(
+                    1,
+                    "ExternalControl: receiving trajectory point failed".into(),
+                );
                 self.motion = Motion::Stop {
                     decel: STOPJ_ACCELERATION,
                 };
@@ -434,9 +446,8 @@ impl RobotModel {
             }
             Next::Point(p, mj, mt, qd, qdd) => (*p, mj, mt, qd, qdd),
         };
-        let block = |k: usize| -> [f64; 6] {
-            core::array::from_fn(|i| f64::from(point[6 * k + i]) / mj)
-        };
+        let block =
+            |k: usize| -> [f64; 6] { core::array::from_fn(|i| f64::from(point[6 * k + i]) / mj) };
         let (q, b2, b3) = (block(0), block(1), block(2));
         let time_s = f64::from(point[18]) / mt;
         let kind = point[20];
@@ -461,7 +472,10 @@ impl RobotModel {
                 }
                 let start = self.q;
                 if (0..6).any(|i| (q[i] - start[i]).abs() / time_s > JOINT_IGNORE_SPEED) {
-                    self.ext_cancel_point(session, "ExternalControl: spline point exceeds the joint velocity limits");
+                    self.ext_cancel_point(
+                        session,
+                        "ExternalControl: spline point exceeds the joint velocity limits",
+                    );
                     return;
                 }
                 let quintic = spline_type == motion::SPLINE_QUINTIC;
@@ -583,7 +597,9 @@ impl RobotModel {
         if speed > MAX_JOINT_SPEED_RADPS {
             self.log(
                 2,
-                format!("movej: {time_s} s needs {speed:.2} rad/s; slowed to the joint speed limit"),
+                format!(
+                    "movej: {time_s} s needs {speed:.2} rad/s; slowed to the joint speed limit"
+                ),
             );
             speed = MAX_JOINT_SPEED_RADPS;
         }
@@ -620,9 +636,11 @@ pub(super) fn spline_coefficients(
             let t2 = t * t;
             c[0][i] = qd0[i];
             c[1][i] = 0.5 * qdd0[i];
-            c[2][i] = (20.0 * d - (8.0 * qd1[i] + 12.0 * qd0[i]) * t - (3.0 * qdd0[i] - qdd1[i]) * t2)
-                / (2.0 * t2 * t);
-            c[3][i] = (-30.0 * d + (14.0 * qd1[i] + 16.0 * qd0[i]) * t
+            c[2][i] =
+                (20.0 * d - (8.0 * qd1[i] + 12.0 * qd0[i]) * t - (3.0 * qdd0[i] - qdd1[i]) * t2)
+                    / (2.0 * t2 * t);
+            c[3][i] = (-30.0 * d
+                + (14.0 * qd1[i] + 16.0 * qd0[i]) * t
                 + (3.0 * qdd0[i] - 2.0 * qdd1[i]) * t2)
                 / (2.0 * t2 * t2);
             c[4][i] = (12.0 * d - 6.0 * (qd1[i] + qd0[i]) * t - (qdd0[i] - qdd1[i]) * t2)

@@ -149,9 +149,7 @@ pub fn parse_external_control(text: &str) -> Result<ExternalControlScript, Scrip
                 .ok_or_else(|| fail("host is not a string"))?;
             let ip: IpAddr = match host {
                 "localhost" => IpAddr::from([127, 0, 0, 1]),
-                h => h
-                    .parse()
-                    .map_err(|_| fail("host is not an IP address"))?,
+                h => h.parse().map_err(|_| fail("host is not an IP address"))?,
             };
             let port: u16 = args[1].parse().map_err(|_| fail("port is not a number"))?;
             return Ok(SocketAddr::new(ip, port));

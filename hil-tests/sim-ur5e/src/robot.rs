@@ -21,8 +21,8 @@ use crate::urscript::{Program, RtdeControlScript, Statement, Target, WatchdogAct
 
 #[path = "rtde_control.rs"]
 mod rtde_control;
-pub use rtde_control::{RTDE_CONTROL_PROGRAM, commands as rtde_commands};
 use rtde_control::ControlLoop;
+pub use rtde_control::{RTDE_CONTROL_PROGRAM, commands as rtde_commands};
 
 #[path = "ext_loop.rs"]
 mod ext_loop;

@@ -20,9 +20,9 @@
 //! is lock-step whenever the simulator is.
 
 use super::{
-    Joints, MAX_JOINT_SPEED_RADPS, Motion, PI, PROGRAM_STOP_DECEL_RADPS2,
-    Program, RobotModel, Running, RtdeControlScript, Statement, Target, WatchdogAction,
-    iso_to_pose, pose_to_iso, robot_mode,
+    Joints, MAX_JOINT_SPEED_RADPS, Motion, PI, PROGRAM_STOP_DECEL_RADPS2, Program, RobotModel,
+    RtdeControlScript, Running, Statement, Target, WatchdogAction, iso_to_pose, pose_to_iso,
+    robot_mode,
 };
 use crate::fields::InputTable;
 use crate::urscript::PathStep;
@@ -270,7 +270,9 @@ impl RobotModel {
                 self.watchdog = None;
                 self.log(
                     3,
-                    format!("program {RTDE_CONTROL_PROGRAM} finished (RTDE Control Script Terminated)"),
+                    format!(
+                        "program {RTDE_CONTROL_PROGRAM} finished (RTDE Control Script Terminated)"
+                    ),
                 );
             }
             _ => {}
@@ -306,7 +308,12 @@ impl RobotModel {
     }
 
     /// Runs a sequence as far as it goes this cycle.
-    fn run_sequence(&mut self, seq: &mut Sequence, c: &mut ControlLoop, inputs: &InputTable) -> SeqState {
+    fn run_sequence(
+        &mut self,
+        seq: &mut Sequence,
+        c: &mut ControlLoop,
+        inputs: &InputTable,
+    ) -> SeqState {
         loop {
             if seq.waiting {
                 if !self.motion_done() {
@@ -346,7 +353,13 @@ impl RobotModel {
     }
 
     /// Starts a move: blocking (the loop waits) or async (progress in register 2).
-    fn start_sequence(&mut self, c: &mut ControlLoop, mut seq: Sequence, is_async: bool, inputs: &InputTable) {
+    fn start_sequence(
+        &mut self,
+        c: &mut ControlLoop,
+        mut seq: Sequence,
+        is_async: bool,
+        inputs: &InputTable,
+    ) {
         if is_async {
             self.write_async(c, 0);
             match self.run_sequence(&mut seq, c, inputs) {
@@ -493,7 +506,11 @@ impl RobotModel {
                     return true;
                 }
                 match &mut self.motion {
-                    Motion::SpeedL { xd: target, accel: a, .. } => {
+                    Motion::SpeedL {
+                        xd: target,
+                        accel: a,
+                        ..
+                    } => {
                         *target = xd;
                         *a = accel;
                     }
@@ -564,7 +581,13 @@ impl RobotModel {
                 self.instant(&Statement::SetTcp(p));
             }
             cmd::SET_PAYLOAD => {
-                self.log(3, format!("set_payload: mass {} kg (no effect on the motion model)", c.f(inputs, 0)));
+                self.log(
+                    3,
+                    format!(
+                        "set_payload: mass {} kg (no effect on the motion model)",
+                        c.f(inputs, 0)
+                    ),
+                );
             }
             cmd::GET_TCP_OFFSET => {
                 let p = self.tcp_offset_p;
@@ -610,7 +633,9 @@ impl RobotModel {
                 let ok = self.nearest_ik(&flange).is_some();
                 self.set_out_int(c, 1, i32::from(ok));
             }
-            cmd::PROTECTIVE_STOP => self.protective_stop("protective_stop() called by the control script"),
+            cmd::PROTECTIVE_STOP => {
+                self.protective_stop("protective_stop() called by the control script")
+            }
             cmd::STOP_SCRIPT => {
                 self.log(3, "Received stop script!".into());
                 return false;
@@ -795,7 +820,11 @@ pub(crate) mod tests {
         let n = r.command(cmd::MOVEJ, &[1], &args(&GOAL, 1.05, 1.4), 10);
         assert!(n <= 2, "async returns at once, took {n} cycles");
         let running = r.out_int(2);
-        assert_ne!(running & 0x8000, 0, "running bit while moving: {running:#x}");
+        assert_ne!(
+            running & 0x8000,
+            0,
+            "running bit while moving: {running:#x}"
+        );
         assert_eq!(running & 0x7fff, 0, "progress 0");
         let mut cycles = 0;
         while r.out_int(2) & 0x8000 != 0 {
@@ -856,7 +885,10 @@ pub(crate) mod tests {
         r.steps(500);
         assert_eq!(r.state(), READY, "real-time commands answer ready");
         let qd = r.m.snapshot().qd;
-        assert!((qd[0] - 0.2).abs() < 1e-6 && (qd[1] + 0.1).abs() < 1e-6, "{qd:?}");
+        assert!(
+            (qd[0] - 0.2).abs() < 1e-6 && (qd[1] + 0.1).abs() < 1e-6,
+            "{qd:?}"
+        );
         r.send(cmd::NO_CMD, &[], &[]);
         r.step();
         r.command(cmd::SPEED_STOP, &[], &[10.0], 200);
@@ -926,7 +958,11 @@ pub(crate) mod tests {
         r.command(cmd::GET_FORWARD_KIN_DEFAULT, &[], &[], 10);
         let pose: Vec<f64> = (0..6).map(|i| r.out_double(i)).collect();
         assert!(close(&pose, &r.m.snapshot().tcp_pose, 1e-12));
-        assert_eq!(r.m.snapshot().output_int_registers[0], 0, "lower range untouched");
+        assert_eq!(
+            r.m.snapshot().output_int_registers[0],
+            0,
+            "lower range untouched"
+        );
         let mut d = pose.clone();
         d.extend(r.q());
         r.command(cmd::GET_INVERSE_KIN_ARGS, &[], &d, 10);

@@ -19,15 +19,15 @@ use ur5e::rtde::wire::{
 };
 
 use crate::SimConfig;
+use crate::external_control::{
+    ExternalControlScript, REVERSE_MESSAGE_INTS, SCRIPT_COMMAND_INTS, TRAJECTORY_POINT_INTS,
+    decode_ints, encode_ints, is_external_control, parse_external_control,
+};
 use crate::fields::{InputTable, OutputField, resolve_output};
 use crate::primary;
 use crate::robot::{RobotModel, Snapshot};
 use crate::stepping::Stepping;
 use crate::stepping::{self, AckSlot, ReaderSync, STEP_WAIT, StepReport};
-use crate::external_control::{
-    ExternalControlScript, REVERSE_MESSAGE_INTS, SCRIPT_COMMAND_INTS, TRAJECTORY_POINT_INTS,
-    decode_ints, encode_ints, is_external_control, parse_external_control,
-};
 use crate::urscript::{is_rtde_control, parse_program, parse_rtde_control};
 
 /// The robot and its RTDE inputs, behind one lock.
@@ -815,7 +815,11 @@ fn dashboard_reply(shared: &Arc<Shared>, command: &str, loaded: &mut Option<Stri
             robot.brake_release();
             "Brake releasing".into()
         }
-        "play" if loaded.is_some() && cfg.urcap_script_sender.is_some() && robot.runtime_state() != 2 => {
+        "play"
+            if loaded.is_some()
+                && cfg.urcap_script_sender.is_some()
+                && robot.runtime_state() != 2 =>
+        {
             // The loaded program is the External Control URCap's: it asks the script sender.
             if let Some(addr) = cfg.urcap_script_sender {
                 request_urcap_program(shared, addr);
@@ -1093,22 +1097,6 @@ fn gripper_connection(shared: &Shared, stream: TcpStream) -> io::Result<()> {
     }
 }
 
-#[cfg(test)]
-mod tests {
-    use super::take_program;
-
-    #[test]
-    fn programs_are_cut_at_their_end_line() {
-        let mut s = String::from("def a():\n  sleep(1)\nend\nstopj(2)\npartial");
-        assert_eq!(take_program(&mut s).unwrap(), "def a():\n  sleep(1)\nend\n");
-        assert_eq!(take_program(&mut s).unwrap(), "stopj(2)\n");
-        assert_eq!(take_program(&mut s), None);
-        assert_eq!(s, "partial");
-        let mut s = String::from("def a():\n  sleep(1)\n");
-        assert_eq!(take_program(&mut s), None);
-    }
-}
-
 // ---------------------------------------------------------------------------------------------
 // External Control (URCL): the robot side of its reverse, trajectory and script command sockets
 
@@ -1206,21 +1194,47 @@ fn external_control_session(shared: &Arc<Shared>, script: &ExternalControlScript
             let _ = s.shutdown(Shutdown::Both);
         }
     };
+    // Registered before the session starts: a step never runs ahead of a message that was
+    // sent before it (lock-step), even before the reader threads are scheduled.
+    let mut registered = Vec::new();
+    for s in sockets {
+        let id = shared.next_conn.fetch_add(1, Ordering::Relaxed);
+        match (s.try_clone(), shared.add_reader(id, s)) {
+            (Ok(stream), Ok(sync)) => registered.push((id, stream, sync)),
+            _ => {
+                for (id, _, _) in &registered {
+                    shared.remove_reader(*id);
+                }
+                shared.remove_reader(id);
+                close();
+                return;
+            }
+        }
+    }
     let session = lock(&shared.ctl).robot.load_external_control(script);
     let Some(session) = session else {
+        for (id, _, _) in &registered {
+            shared.remove_reader(*id);
+        }
         close();
         return;
     };
-    log::info!("sim-ur5e External Control: session {session} connected to {}", script.reverse);
+    let mut registered = registered.into_iter();
+    let mut next = || registered.next();
+    log::info!(
+        "sim-ur5e External Control: session {session} connected to {}",
+        script.reverse
+    );
+    // Same order as `sockets`: trajectory, script command, reverse.
     let readers = [
-        spawn_ext_reader::<REVERSE_MESSAGE_INTS>(shared, session, &reverse, |r, s, m| {
-            r.external_reverse(s, m)
-        }),
-        spawn_ext_reader::<TRAJECTORY_POINT_INTS>(shared, session, &trajectory, |r, s, m| {
+        spawn_ext_reader::<TRAJECTORY_POINT_INTS>(shared, session, next(), |r, s, m| {
             r.external_trajectory_point(s, m)
         }),
-        spawn_ext_reader::<SCRIPT_COMMAND_INTS>(shared, session, &command, |r, s, m| {
+        spawn_ext_reader::<SCRIPT_COMMAND_INTS>(shared, session, next(), |r, s, m| {
             r.external_script_command(s, m)
+        }),
+        spawn_ext_reader::<REVERSE_MESSAGE_INTS>(shared, session, next(), |r, s, m| {
+            r.external_reverse(s, m)
         }),
     ];
     // Results go out after the cycle that produced them.
@@ -1255,13 +1269,11 @@ fn external_control_session(shared: &Arc<Shared>, script: &ExternalControlScript
 fn spawn_ext_reader<const N: usize>(
     shared: &Arc<Shared>,
     session: u64,
-    stream: &TcpStream,
+    registered: Option<(u64, TcpStream, Arc<ReaderSync>)>,
     apply: fn(&mut crate::robot::RobotModel, u64, &[i32; N]),
 ) -> Option<JoinHandle<()>> {
-    let mut stream = stream.try_clone().ok()?;
+    let (id, mut stream, sync) = registered?;
     let shared = Arc::clone(shared);
-    let id = shared.next_conn.fetch_add(1, Ordering::Relaxed);
-    let sync = shared.add_reader(id, &stream).ok()?;
     let for_thread = Arc::clone(&shared);
     let spawned = std::thread::Builder::new()
         .name("sim-ur5e-extctl-in".into())
@@ -1299,5 +1311,21 @@ fn spawn_ext_reader<const N: usize>(
             log::error!("sim-ur5e External Control: cannot spawn a reader: {e}");
             None
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::take_program;
+
+    #[test]
+    fn programs_are_cut_at_their_end_line() {
+        let mut s = String::from("def a():\n  sleep(1)\nend\nstopj(2)\npartial");
+        assert_eq!(take_program(&mut s).unwrap(), "def a():\n  sleep(1)\nend\n");
+        assert_eq!(take_program(&mut s).unwrap(), "stopj(2)\n");
+        assert_eq!(take_program(&mut s), None);
+        assert_eq!(s, "partial");
+        let mut s = String::from("def a():\n  sleep(1)\n");
+        assert_eq!(take_program(&mut s), None);
     }
 }

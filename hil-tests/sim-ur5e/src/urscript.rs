@@ -284,9 +284,9 @@ pub fn parse_rtde_control(text: &str) -> Result<RtdeControlScript, ScriptParseEr
     }
     let offset = |name: &str| -> Result<usize, ScriptParseError> {
         let key = format!("global {name} =");
-        let at = text.find(&key).ok_or_else(|| {
-            ScriptParseError::Framing(format!("control script without `{key}`"))
-        })?;
+        let at = text
+            .find(&key)
+            .ok_or_else(|| ScriptParseError::Framing(format!("control script without `{key}`")))?;
         let line = text[..at].lines().count().max(1);
         let mut rest = &text[at + key.len()..];
         if let Some(after) = rest.trim_start_matches([' ', '\t']).strip_prefix('#') {
@@ -326,11 +326,14 @@ pub fn parse_rtde_control(text: &str) -> Result<RtdeControlScript, ScriptParseEr
             .strip_prefix("signal_async_progress(")
             .and_then(|r| r.strip_suffix(')'))
         {
-            let n = n.trim().parse::<i32>().map_err(|_| ScriptParseError::Statement {
-                line: i + 1,
-                reason: "progress must be an integer".into(),
-                text: l.into(),
-            })?;
+            let n = n
+                .trim()
+                .parse::<i32>()
+                .map_err(|_| ScriptParseError::Statement {
+                    line: i + 1,
+                    reason: "progress must be an integer".into(),
+                    text: l.into(),
+                })?;
             path.push(PathStep::Progress(n));
             continue;
         }
