@@ -313,7 +313,8 @@ pub fn parse_rtde_control(text: &str) -> Result<RtdeControlScript, ScriptParseEr
     for (i, raw) in text.lines().enumerate() {
         let l = strip_comment(raw).trim();
         if !in_path {
-            in_path = l == "def exec_move_path():";
+            // ur_rtde's injected offset may stand in front of the line.
+            in_path = l.ends_with("def exec_move_path():");
             continue;
         }
         if l == "end" {
