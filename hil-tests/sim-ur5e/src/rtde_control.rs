@@ -896,6 +896,28 @@ pub(crate) mod tests {
     }
 
     #[test]
+    fn speedl_moves_the_tool_along_its_twist() {
+        let mut r = Rig::new(0, "");
+        let p0 = r.m.snapshot().tcp_pose;
+        r.send(
+            cmd::SPEEDL,
+            &[],
+            &[0.05, 0.0, 0.0, 0.0, 0.0, 0.0, 0.5, 0.008],
+        );
+        r.steps(500);
+        let p1 = r.m.snapshot().tcp_pose;
+        let v = r.m.snapshot().tcp_speed;
+        assert!((v[0] - 0.05).abs() < 1e-4, "{v:?}");
+        assert!((p1[1] - p0[1]).abs() < 1e-6 && (p1[2] - p0[2]).abs() < 1e-6);
+        // 0.1 s ramp at 0.5 m/s^2, then 0.05 m/s: 0.0025 + 0.9 * 0.05 m.
+        assert!((p1[0] - p0[0] - 0.0475).abs() < 1e-3, "{}", p1[0] - p0[0]);
+        r.send(cmd::NO_CMD, &[], &[]);
+        r.step();
+        r.command(cmd::SPEED_STOP, &[], &[10.0], 200);
+        assert!(r.m.snapshot().qd.iter().all(|v| v.abs() < 1e-9));
+    }
+
+    #[test]
     fn servoj_tracks_streamed_targets_and_servo_stop_holds() {
         let mut r = Rig::new(0, "");
         let q0 = r.q();
