@@ -75,6 +75,8 @@ pub mod commands {
     pub const IS_POSE_WITHIN_SAFETY_LIMITS: i32 = 36;
     /// `isJointsWithinSafetyLimits(q)`.
     pub const IS_JOINTS_WITHIN_SAFETY_LIMITS: i32 = 37;
+    /// `poseTrans(p_from, p_from_to)`.
+    pub const POSE_TRANS: i32 = 39;
     /// `getTCPOffset()`.
     pub const GET_TCP_OFFSET: i32 = 40;
     /// `getForwardKinematics()`.
@@ -589,6 +591,11 @@ impl RobotModel {
                     ),
                 );
             }
+            cmd::POSE_TRANS => {
+                let p =
+                    iso_to_pose(&(pose_to_iso(&c.six(inputs, 0)) * pose_to_iso(&c.six(inputs, 6))));
+                self.set_out_double(c, 0, &p);
+            }
             cmd::GET_TCP_OFFSET => {
                 let p = self.tcp_offset_p;
                 self.set_out_double(c, 0, &p);
@@ -990,6 +997,15 @@ pub(crate) mod tests {
         r.command(cmd::GET_INVERSE_KIN_ARGS, &[], &d, 10);
         let q: Vec<f64> = (0..6).map(|i| r.out_double(i)).collect();
         assert!(close(&q, &r.q(), 1e-6), "{q:?}");
+        let mut d = vec![0.1, 0.0, 0.0, 0.0, 0.0, PI / 2.0];
+        d.extend([0.0, 0.2, 0.0, 0.0, 0.0, 0.0]);
+        r.command(cmd::POSE_TRANS, &[], &d, 10);
+        let p: Vec<f64> = (0..6).map(|i| r.out_double(i)).collect();
+        // (0.1, 0, 0) turned a quarter about z, then 0.2 along its y: (-0.1, 0, 0).
+        assert!(
+            close(&p, &[-0.1, 0.0, 0.0, 0.0, 0.0, PI / 2.0], 1e-12),
+            "{p:?}"
+        );
         r.command(cmd::IS_STEADY, &[], &[], 10);
         assert_eq!(r.out_int(1), 1);
         let mut bad = r.q();
