@@ -5,7 +5,11 @@
 //! primary/secondary/real-time on 30001/30002/30003 (state streams; URScript programs with
 //! `movej`, `movel`, `stopj`, `stopl`, `speedj`, `sleep`, `rtde_set_watchdog`, ...), and the
 //! Robotiq URCap gripper socket on 63352. Motion follows the UR5e kinematics
-//! (`ur5e_kin::Ur5e`) and its joint speed limit. Protocol facts: `docs/ur5e.md`.
+//! (`ur5e_kin::Ur5e`) and its joint speed limit. Two uploaded programs are recognised and their
+//! command loops served natively instead of interpreted: ur_rtde's control script (its RTDE
+//! register protocol, [`robot::rtde_commands`]) and the UR client library's External Control
+//! program (its reverse, trajectory and script command sockets, [`external_control`]).
+//! Protocol facts, command by command: `docs/ur5e.md`.
 //!
 //! Run it as its own process (`sim-ur5e --help`) or in-process:
 //!
