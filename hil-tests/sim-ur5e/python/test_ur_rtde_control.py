@@ -176,6 +176,20 @@ def _():
     r.disconnect()
 
 
+@check("setWatchdog: kicks keep the control script running, silence stops it")
+def _():
+    c = rtde_control.RTDEControlInterface(HOST)
+    r = rtde_receive.RTDEReceiveInterface(HOST)
+    assert c.setWatchdog(5.0) is True
+    for _ in range(20):
+        assert c.kickWatchdog() is True
+        time.sleep(0.05)
+    assert c.isProgramRunning(), "stopped although kicked at 20 Hz"
+    wait_until(lambda: r.getRuntimeState() == 1, 2.0, "the watchdog to stop the script")
+    c.disconnect()
+    r.disconnect()
+
+
 @check("python-urx parses the secondary stream for 10 s without a warning")
 def _():
     from urx.ursecmon import SecondaryMonitor
