@@ -190,7 +190,7 @@ def _():
     r.disconnect()
 
 
-@check("python-urx parses the secondary stream for 10 s without a warning")
+@check("python-urx parses the secondary stream for 10 s without a warning after the VERSION message")
 def _():
     from urx.ursecmon import SecondaryMonitor
 

@@ -12,6 +12,7 @@ use crate::external_control::{
     ExternalControlScript, REVERSE_MESSAGE_INTS, SCRIPT_COMMAND_INTS, TRAJECTORY_POINT_INTS, mode,
     motion, result, trajectory_action,
 };
+use crate::fields::InputTable;
 
 /// Name the External Control program runs under.
 pub const EXTERNAL_CONTROL_PROGRAM: &str = "external_control";
@@ -22,6 +23,8 @@ const STOPJ_ACCELERATION: f64 = 4.0;
 const JOINT_IGNORE_SPEED: f64 = 20.0;
 /// Seconds the trajectory thread waits for a point before it fails.
 const POINT_TIMEOUT_S: f64 = 0.5;
+/// The program's `steptime` on an e-Series controller (s).
+const STEPTIME_S: f64 = 0.002;
 
 /// State of one External Control session.
 #[derive(Debug, Clone, PartialEq)]
@@ -158,7 +161,7 @@ impl RobotModel {
                 let ok = v
                     .iter()
                     .zip(from)
-                    .all(|(a, b)| (a - b).abs() / 0.002 <= JOINT_IGNORE_SPEED);
+                    .all(|(a, b)| (a - b).abs() / STEPTIME_S <= JOINT_IGNORE_SPEED);
                 if ok {
                     e.servo_target = Some(v);
                 }
@@ -284,7 +287,7 @@ impl RobotModel {
     }
 
     /// One cycle of the External Control loop (called with the session's `Running`).
-    pub(super) fn external_step(&mut self) {
+    pub(super) fn external_step(&mut self, inputs: &InputTable) {
         let Some(e) = self.running.as_ref().and_then(|r| r.external.as_deref()) else {
             return;
         };
@@ -309,7 +312,7 @@ impl RobotModel {
                 if let Some(target) = target {
                     self.motion = Motion::Servo {
                         target,
-                        time_s: 0.002,
+                        time_s: STEPTIME_S,
                     };
                 }
             }
@@ -338,7 +341,7 @@ impl RobotModel {
                     }
                 }
             }
-            mode::FORWARD => self.external_trajectory(session),
+            mode::FORWARD => self.external_trajectory(session, inputs),
             mode::IDLE | mode::UNINITIALIZED => {
                 if matches!(
                     self.motion,
@@ -379,7 +382,7 @@ impl RobotModel {
     }
 
     /// The trajectory thread: one point at a time, each started when the previous one ended.
-    fn external_trajectory(&mut self, session: u64) {
+    fn external_trajectory(&mut self, session: u64, inputs: &InputTable) {
         enum Next {
             Wait,
             Finished,
@@ -526,7 +529,7 @@ impl RobotModel {
                             speed: v,
                         }
                     };
-                    self.begin_motion(&s, &crate::fields::InputTable::new())
+                    self.begin_motion(&s, inputs)
                 }
             }
             other => {

@@ -890,7 +890,7 @@ impl RobotModel {
             return;
         }
         if self.running.as_ref().is_some_and(|r| r.external.is_some()) {
-            self.external_step();
+            self.external_step(inputs);
             return;
         }
         for _ in 0..64 {

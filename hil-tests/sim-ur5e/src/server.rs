@@ -818,7 +818,7 @@ fn dashboard_reply(shared: &Arc<Shared>, command: &str, loaded: &mut Option<Stri
         "play"
             if loaded.is_some()
                 && cfg.urcap_script_sender.is_some()
-                && robot.runtime_state() != 2 =>
+                && robot.runtime_state() == crate::robot::runtime_state::STOPPED =>
         {
             // The loaded program is the External Control URCap's: it asks the script sender.
             if let Some(addr) = cfg.urcap_script_sender {
