@@ -1023,3 +1023,37 @@ pub(crate) mod tests {
         assert_eq!(r.m.runtime_state(), runtime_state::PLAYING);
     }
 }
+
+#[cfg(test)]
+mod parse_tests {
+    use super::tests::control_script;
+    use crate::urscript::{ScriptParseError, is_rtde_control, parse_rtde_control};
+
+    #[test]
+    fn a_path_with_movep_is_rejected_naming_its_line() {
+        let text = control_script(0, "\tmovep(p[0.1,0.2,0.3,0,3.14,0],a=1.2,v=0.25,r=0)\n");
+        match parse_rtde_control(&text) {
+            Err(ScriptParseError::Statement { line, text, .. }) => {
+                assert!(text.starts_with("movep("), "{text}");
+                assert!(line > 1);
+            }
+            other => panic!("{other:?}"),
+        }
+    }
+
+    #[test]
+    fn only_urrtde_s_script_is_recognised() {
+        assert!(is_rtde_control(&control_script(0, "")));
+        assert!(!is_rtde_control("def rtde_control():\n  sleep(1)\nend\n"));
+        let bad = control_script(0, "").replace(
+            "reg_offset_int = # int register offset\n0",
+            "reg_offset_int = 7",
+        );
+        assert!(
+            parse_rtde_control(&bad)
+                .unwrap_err()
+                .to_string()
+                .contains("reg_offset_int")
+        );
+    }
+}
