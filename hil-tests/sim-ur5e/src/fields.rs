@@ -15,8 +15,12 @@ pub enum OutputSource {
     Fixed(fn(&Snapshot, &InputTable) -> RtdeValue),
     /// Read-back of an input slot.
     Input(usize),
-    /// An output register (always zero: no program writes registers in this simulator).
+    /// Always zero (bit registers: no program writes them in this simulator).
     Zero,
+    /// `output_int_register_n` (written by ur_rtde's control loop).
+    IntRegister(usize),
+    /// `output_double_register_n`.
+    DoubleRegister(usize),
 }
 
 /// One resolved output variable.
@@ -35,6 +39,12 @@ impl OutputField {
             OutputSource::Fixed(f) => f(snap, inputs),
             OutputSource::Input(i) => inputs.value(i),
             OutputSource::Zero => RtdeValue::zero(self.ty),
+            OutputSource::IntRegister(n) => {
+                RtdeValue::Int32(snap.output_int_registers.get(n).copied().unwrap_or(0))
+            }
+            OutputSource::DoubleRegister(n) => {
+                RtdeValue::Double(snap.output_double_registers.get(n).copied().unwrap_or(0.0))
+            }
         }
     }
 }
@@ -237,11 +247,17 @@ pub fn resolve_output(name: &str, inputs: &InputTable) -> Option<OutputField> {
     if register(name, "output_bit_register_", 64..=127).is_some() {
         return zero(RtdeType::Bool);
     }
-    if register(name, "output_int_register_", 0..=47).is_some() {
-        return zero(RtdeType::Int32);
+    if let Some(n) = register(name, "output_int_register_", 0..=47) {
+        return Some(OutputField {
+            ty: RtdeType::Int32,
+            source: OutputSource::IntRegister(n as usize),
+        });
     }
-    if register(name, "output_double_register_", 0..=47).is_some() {
-        return zero(RtdeType::Double);
+    if let Some(n) = register(name, "output_double_register_", 0..=47) {
+        return Some(OutputField {
+            ty: RtdeType::Double,
+            source: OutputSource::DoubleRegister(n as usize),
+        });
     }
     // Input variables can be read back as outputs.
     inputs.index_of(name).map(|i| OutputField {

@@ -5,7 +5,11 @@
 //! primary/secondary/real-time on 30001/30002/30003 (state streams; URScript programs with
 //! `movej`, `movel`, `stopj`, `stopl`, `speedj`, `sleep`, `rtde_set_watchdog`, ...), and the
 //! Robotiq URCap gripper socket on 63352. Motion follows the UR5e kinematics
-//! (`ur5e_kin::Ur5e`) and its joint speed limit. Protocol facts: `docs/ur5e.md`.
+//! (`ur5e_kin::Ur5e`) and its joint speed limit. Two uploaded programs are recognised and their
+//! command loops served natively instead of interpreted: ur_rtde's control script (its RTDE
+//! register protocol, [`robot::rtde_commands`]) and the UR client library's External Control
+//! program (its reverse, trajectory and script command sockets, [`external_control`]).
+//! Protocol facts, command by command: `docs/ur5e.md`.
 //!
 //! Run it as its own process (`sim-ur5e --help`) or in-process:
 //!
@@ -30,6 +34,7 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 
+pub mod external_control;
 pub mod fields;
 pub mod gripper;
 pub mod primary;
@@ -45,7 +50,7 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::thread::JoinHandle;
 use std::time::Duration;
 
-pub use robot::{RobotInit, Snapshot};
+pub use robot::{EXTERNAL_CONTROL_PROGRAM, RTDE_CONTROL_PROGRAM, RobotInit, Snapshot};
 pub use server::PortKind;
 use server::{Shared, lock};
 pub use stepping::{StepError, StepReport, Stepping};
@@ -86,6 +91,9 @@ pub struct SimConfig {
     /// Who advances the controller: its own wall-clock thread, or the owner through
     /// [`Ur5eSim::step`] (lock-step HIL).
     pub stepping: Stepping,
+    /// The External Control URCap's script sender (URCL, default port 50002): dashboard
+    /// `play` of a loaded program asks it for the External Control program and runs it.
+    pub urcap_script_sender: Option<SocketAddr>,
 }
 
 impl Default for SimConfig {
@@ -112,6 +120,7 @@ impl Default for SimConfig {
             init: RobotInit::default(),
             gripper_object_width_m: None,
             stepping: Stepping::WallClock,
+            urcap_script_sender: None,
         }
     }
 }

@@ -17,7 +17,20 @@ use ur5e_kin::{Joints, Ur5e, wrap_to_pi};
 
 use crate::fields::InputTable;
 use crate::gripper::GripperModel;
-use crate::urscript::{Program, Statement, Target, WatchdogAction};
+use crate::urscript::{Program, RtdeControlScript, Statement, Target, WatchdogAction};
+
+#[path = "rtde_control.rs"]
+mod rtde_control;
+use rtde_control::ControlLoop;
+pub use rtde_control::{RTDE_CONTROL_PROGRAM, commands as rtde_commands};
+
+#[path = "ext_loop.rs"]
+mod ext_loop;
+pub use ext_loop::EXTERNAL_CONTROL_PROGRAM;
+use ext_loop::ExtLoop;
+
+/// Number of RTDE output int and double registers (0..=47).
+pub const OUTPUT_REGISTERS: usize = 48;
 
 /// UR5e joint speed limit (rad/s), reference §5.2.
 pub const MAX_JOINT_SPEED_RADPS: f64 = PI;
@@ -151,6 +164,22 @@ enum Motion {
     Sleep { remaining_s: f64 },
     /// `sync`.
     Sync,
+    /// `servoj`: track `target`, reaching it in `time_s` when the joint speed limit allows.
+    Servo { target: Joints, time_s: f64 },
+    /// A joint spline `start + c1 t + .. + c5 t^5` over `total_s`.
+    Spline {
+        start: Joints,
+        coeffs: [Joints; 5],
+        t: f64,
+        total_s: f64,
+    },
+    /// `speedl`: tool speed `xd` (base frame, m/s and rad/s) reached with `accel`; `v` is the
+    /// tool speed commanded now.
+    SpeedL {
+        xd: [f64; 6],
+        accel: f64,
+        v: [f64; 6],
+    },
 }
 
 #[derive(Debug, Clone, PartialEq)]
@@ -170,6 +199,10 @@ struct Running {
     /// Index of the statement whose motion is in progress (re-run on resume).
     current: Option<usize>,
     paused: bool,
+    /// ur_rtde's control script: its command loop, served natively instead of statements.
+    control: Option<Box<ControlLoop>>,
+    /// An External Control session (URCL), served natively.
+    external: Option<Box<ExtLoop>>,
 }
 
 /// A log line from the controller (text messages on RTDE and the primary port).
@@ -220,6 +253,10 @@ pub struct Snapshot {
     pub digital_output_bits: u64,
     /// Gripper finger gap (m).
     pub gripper_opening_m: f64,
+    /// RTDE `output_int_register_0..47` (written by ur_rtde's control loop).
+    pub output_int_registers: [i32; OUTPUT_REGISTERS],
+    /// RTDE `output_double_register_0..47`.
+    pub output_double_registers: [f64; OUTPUT_REGISTERS],
 }
 
 impl Snapshot {
@@ -298,6 +335,9 @@ pub struct RobotModel {
     /// The gripper on the flange.
     pub gripper: GripperModel,
     messages: Vec<ControllerMessage>,
+    out_int: [i32; OUTPUT_REGISTERS],
+    out_double: [f64; OUTPUT_REGISTERS],
+    next_session: u64,
 }
 
 fn pose_to_iso(p: &[f64; 6]) -> Isometry3<f64> {
@@ -342,6 +382,9 @@ impl RobotModel {
             floor_z_m: init.floor_z_m,
             gripper: GripperModel::default(),
             messages: Vec::new(),
+            out_int: [0; OUTPUT_REGISTERS],
+            out_double: [0.0; OUTPUT_REGISTERS],
+            next_session: 0,
         }
     }
 
@@ -450,6 +493,8 @@ impl RobotModel {
             pc: 0,
             current: None,
             paused: false,
+            control: None,
+            external: None,
         });
         // A moving arm first comes to rest, unless the new program does exactly that itself.
         self.motion = if self.moving() && !starts_with_stop {
@@ -632,17 +677,22 @@ impl RobotModel {
 
     /// Joint target for a pose target: the IK solution nearest the current joints.
     fn nearest_ik(&self, flange: &Isometry3<f64>) -> Option<Joints> {
+        self.nearest_ik_to(flange, &self.q)
+    }
+
+    /// Joint target for a flange pose: the IK solution nearest `near`.
+    fn nearest_ik_to(&self, flange: &Isometry3<f64>, near: &Joints) -> Option<Joints> {
         let r = flange.rotation.to_rotation_matrix().into_inner();
         let p = flange.translation.vector;
         let mut best: Option<(f64, Joints)> = None;
-        self.kin.inverse_matrix(&r, &p, self.q[5], |sol| {
-            // Each joint's representative nearest the current angle (the arm turns the short way).
-            let cand: Joints = core::array::from_fn(|i| self.q[i] + wrap_to_pi(sol[i] - self.q[i]));
+        self.kin.inverse_matrix(&r, &p, near[5], |sol| {
+            // Each joint's representative nearest the reference angle (the short way round).
+            let cand: Joints = core::array::from_fn(|i| near[i] + wrap_to_pi(sol[i] - near[i]));
             let within = cand.iter().all(|v| v.abs() <= 2.0 * PI) && cand[2].abs() <= PI;
             if within {
                 let cost = cand
                     .iter()
-                    .zip(&self.q)
+                    .zip(near)
                     .fold(0.0_f64, |m, (a, b)| m.max((a - b).abs()));
                 if best.is_none_or(|(c, _)| cost < c) {
                     best = Some((cost, cand));
@@ -835,6 +885,14 @@ impl RobotModel {
 
     fn advance_program(&mut self, inputs: &InputTable) {
         // Instant statements run in the same cycle; stop at the first one that takes time.
+        if self.running.as_ref().is_some_and(|r| r.control.is_some()) {
+            self.control_step(inputs);
+            return;
+        }
+        if self.running.as_ref().is_some_and(|r| r.external.is_some()) {
+            self.external_step(inputs);
+            return;
+        }
         for _ in 0..64 {
             let Some(r) = &self.running else { return };
             if r.paused || !self.motion_done() {
@@ -965,6 +1023,77 @@ impl RobotModel {
                 *remaining_s <= 0.0
             }
             Motion::Sync => true,
+            Motion::Servo { target, time_s } => {
+                let frac = (dt / time_s.max(dt)).min(1.0);
+                let mut step: Joints = core::array::from_fn(|i| (target[i] - self.q[i]) * frac);
+                let worst = step.iter().fold(0.0_f64, |m, d| m.max(d.abs())) / dt;
+                if worst > MAX_JOINT_SPEED_RADPS {
+                    let k = MAX_JOINT_SPEED_RADPS / worst;
+                    step.iter_mut().for_each(|d| *d *= k);
+                }
+                self.q = core::array::from_fn(|i| self.q[i] + step[i]);
+                false
+            }
+            Motion::Spline {
+                start,
+                coeffs,
+                t,
+                total_s,
+            } => {
+                *t = (*t + dt * scale).min(*total_s);
+                let tt = *t;
+                let q: Joints = core::array::from_fn(|i| {
+                    let mut x = 0.0;
+                    for c in coeffs.iter().rev() {
+                        x = (x + c[i]) * tt;
+                    }
+                    start[i] + x
+                });
+                let worst = q
+                    .iter()
+                    .zip(&self.q)
+                    .fold(0.0_f64, |m, (a, b)| m.max((a - b).abs()))
+                    / dt;
+                if worst > MAX_JOINT_SPEED_RADPS * 1.0001 {
+                    self.protective_stop("spline: a joint would exceed its speed limit");
+                    return;
+                }
+                self.q = q;
+                tt >= *total_s
+            }
+            Motion::SpeedL { xd, accel, v } => {
+                for i in 0..6 {
+                    v[i] += (xd[i] * scale - v[i]).clamp(-*accel * dt, *accel * dt);
+                }
+                let tool = self.flange(&self.q) * self.tcp_offset;
+                let lin = Vector3::new(v[0], v[1], v[2]) * dt;
+                let ang = Vector3::new(v[3], v[4], v[5]) * dt;
+                let next = Isometry3::from_parts(
+                    Translation3::from(tool.translation.vector + lin),
+                    UnitQuaternion::from_scaled_axis(ang) * tool.rotation,
+                );
+                match self.nearest_ik(&(next * self.tcp_offset.inverse())) {
+                    Some(q) => {
+                        let worst = q
+                            .iter()
+                            .zip(&self.q)
+                            .fold(0.0_f64, |m, (a, b)| m.max((a - b).abs()))
+                            / dt;
+                        if worst > MAX_JOINT_SPEED_RADPS * 1.0001 {
+                            self.protective_stop("speedl: a joint would exceed its speed limit");
+                            return;
+                        }
+                        self.q = q;
+                    }
+                    None => {
+                        self.runtime_error(
+                            "speedl: path passes a singularity or leaves the workspace",
+                        );
+                        return;
+                    }
+                }
+                false
+            }
         };
         if !finished {
             self.motion = motion;
@@ -1013,6 +1142,8 @@ impl RobotModel {
             target_speed_fraction: self.speed_fraction,
             digital_output_bits: self.digital_output_bits,
             gripper_opening_m: self.gripper.opening_m(),
+            output_int_registers: self.out_int,
+            output_double_registers: self.out_double,
         }
     }
 }

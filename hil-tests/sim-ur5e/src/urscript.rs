@@ -141,8 +141,11 @@ pub enum ScriptParseError {
     /// `def` without a matching final `end`, or a malformed header.
     #[error("program framing: {0}")]
     Framing(String),
-    /// ur_rtde's control script (register state machine) is recognised but not emulated.
-    #[error("ur_rtde control script (def rtde_control) is not emulated by this simulator")]
+    /// ur_rtde's control script (`def rtde_control():`): not URScript this parser runs; the
+    /// simulator serves its register loop natively ([`parse_rtde_control`]).
+    #[error(
+        "ur_rtde control script (def rtde_control): served natively by its register loop, not parsed as URScript"
+    )]
     UrRtdeControlScript,
     /// A line that is not a supported call.
     #[error("line {line}: {reason}: {text:?}")]
@@ -228,6 +231,128 @@ pub fn parse_program(text: &str) -> Result<Program, ScriptParseError> {
         name: name.to_string(),
         secondary,
         statements,
+    })
+}
+
+/// One step of the path ur_rtde injects into its control script (`moveJ(path)`, `moveL(path)`,
+/// `movePath`).
+#[derive(Debug, Clone, PartialEq)]
+pub enum PathStep {
+    /// `signal_async_progress(n)`: the async progress register reports waypoint `n`.
+    Progress(i32),
+    /// A `movej` / `movel` waypoint (its blend radius `r` is read and ignored: every waypoint
+    /// ends at rest).
+    Move(Statement),
+}
+
+/// What the simulator takes from ur_rtde's control script (`def rtde_control():`, ur_rtde
+/// 1.6's `rtde_control.script`): the register offsets ur_rtde injected (0: registers 0-23,
+/// 24: the upper range) and the path injected into `exec_move_path`. The rest of the script
+/// (its command loop) is served natively by the simulator, command by command
+/// (`docs/ur5e.md`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct RtdeControlScript {
+    /// Offset of the integer registers the script reads and writes.
+    pub int_offset: usize,
+    /// Offset of the double registers.
+    pub float_offset: usize,
+    /// The injected move path (empty when none).
+    pub path: Vec<PathStep>,
+}
+
+/// Whether `text` is ur_rtde's control script: `def rtde_control():` with its command loop.
+pub fn is_rtde_control(text: &str) -> bool {
+    let header = text
+        .lines()
+        .map(|l| strip_comment(l).trim_end())
+        .find(|l| !l.trim().is_empty());
+    header == Some("def rtde_control():")
+        && text.contains("def process_cmd(")
+        && text.contains("def signal_ready():")
+}
+
+/// Reads ur_rtde's control script: its register offsets and its injected path.
+///
+/// The offsets follow `global reg_offset_int =` (ur_rtde injects the number after the comment
+/// that ends that line, so it stands at the start of the next one). Errors name the line.
+pub fn parse_rtde_control(text: &str) -> Result<RtdeControlScript, ScriptParseError> {
+    if !is_rtde_control(text) {
+        return Err(ScriptParseError::Framing(
+            "not ur_rtde's control script (def rtde_control() with process_cmd and signal_ready)"
+                .into(),
+        ));
+    }
+    let offset = |name: &str| -> Result<usize, ScriptParseError> {
+        let key = format!("global {name} =");
+        let at = text
+            .find(&key)
+            .ok_or_else(|| ScriptParseError::Framing(format!("control script without `{key}`")))?;
+        let line = text[..at].lines().count().max(1);
+        let mut rest = &text[at + key.len()..];
+        if let Some(after) = rest.trim_start_matches([' ', '\t']).strip_prefix('#') {
+            rest = after.split_once('\n').map_or("", |(_, r)| r);
+        }
+        let digits: String = rest
+            .trim_start()
+            .chars()
+            .take_while(char::is_ascii_digit)
+            .collect();
+        match digits.parse::<usize>() {
+            Ok(v @ (0 | 24)) => Ok(v),
+            _ => Err(ScriptParseError::Statement {
+                line,
+                reason: format!("{name} must be 0 or 24"),
+                text: rest.lines().next().unwrap_or("").into(),
+            }),
+        }
+    };
+    let int_offset = offset("reg_offset_int")?;
+    let float_offset = offset("reg_offset_float")?;
+    let mut path = Vec::new();
+    let mut in_path = false;
+    for (i, raw) in text.lines().enumerate() {
+        let l = strip_comment(raw).trim();
+        if !in_path {
+            // ur_rtde's injected offset may stand in front of the line.
+            in_path = l.ends_with("def exec_move_path():");
+            continue;
+        }
+        if l == "end" {
+            break;
+        }
+        if l.is_empty() || l.starts_with("textmsg(") {
+            continue;
+        }
+        if let Some(n) = l
+            .strip_prefix("signal_async_progress(")
+            .and_then(|r| r.strip_suffix(')'))
+        {
+            let n = n
+                .trim()
+                .parse::<i32>()
+                .map_err(|_| ScriptParseError::Statement {
+                    line: i + 1,
+                    reason: "progress must be an integer".into(),
+                    text: l.into(),
+                })?;
+            path.push(PathStep::Progress(n));
+            continue;
+        }
+        match parse_statement(i + 1, l)? {
+            s @ (Statement::MoveJ { .. } | Statement::MoveL { .. }) => path.push(PathStep::Move(s)),
+            _ => {
+                return Err(ScriptParseError::Statement {
+                    line: i + 1,
+                    reason: "a move path holds movej and movel only in this simulator".into(),
+                    text: l.into(),
+                });
+            }
+        }
+    }
+    Ok(RtdeControlScript {
+        int_offset,
+        float_offset,
+        path,
     })
 }
 

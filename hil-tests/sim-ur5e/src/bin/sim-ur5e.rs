@@ -57,6 +57,10 @@ struct Args {
     /// Initial joints (rad), six comma-separated values.
     #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
     initial_q: Option<Vec<f64>>,
+    /// The External Control URCap's script sender (URCL's, e.g. 127.0.0.1:50002): dashboard
+    /// `play` of a loaded program asks it for the External Control program.
+    #[arg(long)]
+    urcap_script_sender: Option<std::net::SocketAddr>,
 }
 
 fn main() -> anyhow::Result<()> {
@@ -81,6 +85,7 @@ fn main() -> anyhow::Result<()> {
         programs: args.programs.clone(),
         init,
         gripper_object_width_m: args.gripper_object_m,
+        urcap_script_sender: args.urcap_script_sender,
         ..SimConfig::default()
     };
     if args.ephemeral {
