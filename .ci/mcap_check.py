@@ -40,6 +40,9 @@ def main(path):
         metadata = {m.name: m.metadata for m in reader.iter_metadata()}
         if "grop.mission" not in metadata or "map" not in metadata["grop.mission"]:
             failures.append("no grop.mission metadata with the map")
+        log_format = metadata.get("grop.log", {}).get("log_format", "")
+        if not log_format.isdigit() or int(log_format) < 2:
+            failures.append(f"grop.log metadata: log_format {log_format!r} (expected 2 or later)")
         seen = {}
         for schema, channel, message in reader.iter_messages():
             doc = json.loads(message.data)

@@ -8,8 +8,7 @@ use std::cell::RefCell;
 use grop_ipc::{
     ArmIoMsg, ArmStateMsg, BasePoseMsg, BaseStateMsg, CAMERA_MAX_BYTES, CameraFrameHeader,
     CameraFrameMsg, EVENT_DETAIL_CAPACITY, EventMsg, HeartbeatMsg, HeatmapsMsg, MAX_HEATMAPS,
-    MAX_PLAN_STEPS, MAX_TASK_STEPS, OVERHEAD_MAX_HEIGHT_PX, OVERHEAD_MAX_WIDTH_PX, OverheadFrame,
-    PlanMsg, PlanStep, ReplanRequestMsg, TaskPlanMsg, TaskStep, Topic,
+    MAX_TASK_STEPS, ReplanRequestMsg, TaskPlanMsg, TaskStep, Topic,
 };
 use world::camera::{FrameLayout, OverheadCamera, PixelFormat, cut_view};
 use world::view::{CROP_COLS, CROP_ROWS, Side};
@@ -27,10 +26,6 @@ use world::view::{CROP_COLS, CROP_ROWS, Side};
 unsafe trait AnyBitPattern: Sized {}
 
 // SAFETY: see the trait; each is integers/floats/byte arrays (and structs of those) only.
-unsafe impl AnyBitPattern for OverheadFrame {}
-// SAFETY: as above.
-unsafe impl AnyBitPattern for PlanMsg {}
-// SAFETY: as above.
 unsafe impl AnyBitPattern for BaseStateMsg {}
 // SAFETY: as above.
 unsafe impl AnyBitPattern for ArmStateMsg {}
@@ -52,8 +47,6 @@ unsafe impl AnyBitPattern for CameraFrameMsg {}
 unsafe impl AnyBitPattern for CameraFrameHeader {}
 // SAFETY: as above.
 unsafe impl AnyBitPattern for ArmIoMsg {}
-// SAFETY: as above.
-unsafe impl AnyBitPattern for PlanStep {}
 // SAFETY: as above.
 unsafe impl AnyBitPattern for TaskStep {}
 
@@ -137,64 +130,33 @@ fn bytes_of<T: AnyBitPattern>(msg: &T) -> Vec<u8> {
     unsafe { std::slice::from_raw_parts((msg as *const T).cast::<u8>(), size_of::<T>()) }.to_vec()
 }
 
-/// A valid message of the type [`ipc_messages`] selects with `which` (0..=11), as bytes; the
+/// A valid message of the type [`ipc_messages`] selects with `which` (0..=9), as bytes; the
 /// large ones cut after their meaningful part (the rest reads as zeros).
 pub(crate) fn bytes_of_message(which: u8) -> Vec<u8> {
     use grop_ipc::{
-        ArmSafety, BaseMode, EventKind, OverheadFrameHeader, PixelFormat as IpcFormat, PoseFixKind,
-        ProcessRole, ReplanReason, TableSide, TaskStep,
+        ArmSafety, BaseMode, EventKind, PixelFormat as IpcFormat, PoseFixKind, ProcessRole,
+        ReplanReason, TableSide, TaskStep,
     };
-    let mut bytes = match which % 12 {
+    let mut bytes = match which % 10 {
         0 => {
-            let mut msg = zeroed::<OverheadFrame>();
-            let header = OverheadFrameHeader {
-                frame_id: 3,
-                stamp_ns: 1_000,
-                width_px: 8,
-                height_px: 8,
-                metres_per_px: 0.0625,
-                left_x_m: -0.25,
-                top_y_m: 6.25,
-            };
-            let pixels: Vec<u8> = (0..64u8).collect();
-            let _ = msg.set_image(header, &pixels);
-            let mut b = bytes_of(&*msg);
-            b.truncate(48 + 64);
-            b
-        }
-        1 => {
-            let mut msg = zeroed::<PlanMsg>();
-            msg.plan_id = 1;
-            msg.utility = 35.5;
-            let mut step = msg.steps[0].with_side(TableSide::Far);
-            step.object_index = 2;
-            step.target_m = [1.0, 6.0, 1.3];
-            step.goal_y_m = 6.8;
-            let near = msg.steps[1].with_side(TableSide::Near);
-            let _ = msg.set_steps(&[step, near]);
-            let mut b = bytes_of(&*msg);
-            b.truncate(64 + 72 * 3);
-            b
-        }
-        2 => {
             let mut msg = zeroed::<BaseStateMsg>();
             msg.seq = 9;
             msg.speed_mps = 0.4;
             msg.set_mode(BaseMode::Tractor);
             bytes_of(&*msg)
         }
-        3 => {
+        1 => {
             let mut msg = zeroed::<ArmStateMsg>();
             msg.joints_rad = [0.0, -1.57, 1.57, -1.57, -1.57, 0.0];
             msg.set_safety(ArmSafety::ProtectiveStop);
             bytes_of(&*msg)
         }
-        4 => bytes_of(&EventMsg::new(
+        2 => bytes_of(&EventMsg::new(
             EventKind::UnloadFailed,
             7,
             "object 2: unreachable ✓",
         )),
-        5 => {
+        3 => {
             let mut msg = zeroed::<TaskPlanMsg>();
             msg.object_count = 1;
             let steps = [
@@ -207,7 +169,7 @@ pub(crate) fn bytes_of_message(which: u8) -> Vec<u8> {
             b.truncate(80 + 88 * 4);
             b
         }
-        6 => {
+        4 => {
             let mut msg = zeroed::<ReplanRequestMsg>();
             msg.request_id = 2;
             msg.set_reason(ReplanReason::UnloadFailed);
@@ -215,7 +177,7 @@ pub(crate) fn bytes_of_message(which: u8) -> Vec<u8> {
             msg.remaining_mask = 0b101;
             bytes_of(&*msg)
         }
-        7 => {
+        5 => {
             let mut msg = zeroed::<HeatmapsMsg>();
             msg.count = 2;
             msg.locations[0].side = 1;
@@ -224,7 +186,7 @@ pub(crate) fn bytes_of_message(which: u8) -> Vec<u8> {
             b.truncate(24 + 64);
             b
         }
-        8 => bytes_of(&BasePoseMsg::fix(
+        6 => bytes_of(&BasePoseMsg::fix(
             4,
             5,
             PoseFixKind::TableRelative,
@@ -232,13 +194,13 @@ pub(crate) fn bytes_of_message(which: u8) -> Vec<u8> {
             0.01,
             0.005,
         )),
-        9 => {
+        7 => {
             let mut msg = zeroed::<HeartbeatMsg>();
             msg.pid = 1234;
             msg.set_role(ProcessRole::Executive);
             bytes_of(&*msg)
         }
-        11 => {
+        9 => {
             let mut msg = zeroed::<ArmIoMsg>();
             msg.seq = 12;
             msg.call = grop_ipc::ArmCall::StartMoveJoints as u32;
@@ -265,76 +227,24 @@ pub(crate) fn bytes_of_message(which: u8) -> Vec<u8> {
     bytes
 }
 
-/// First byte: which message type (12 of them); the rest: its bytes (zero-filled to the type's size). Every
+/// First byte: which message type (10 of them); the rest: its bytes (zero-filled to the type's size). Every
 /// checked accessor either errors or returns what the raw fields say, within the capacities;
 /// values that check, written back through the setters, read back the same.
 pub fn ipc_messages(data: &[u8]) {
     let Some((&which, bytes)) = data.split_first() else {
         return;
     };
-    match which % 12 {
-        0 => overhead_frame(bytes),
-        1 => plan(bytes),
-        2 => base_state(bytes),
-        3 => arm_state(bytes),
-        4 => event(bytes),
-        5 => task_plan(bytes),
-        6 => replan_request(bytes),
-        7 => heatmaps(bytes),
-        8 => base_pose(bytes),
-        9 => heartbeat(bytes),
-        10 => camera_message(bytes),
+    match which % 10 {
+        0 => base_state(bytes),
+        1 => arm_state(bytes),
+        2 => event(bytes),
+        3 => task_plan(bytes),
+        4 => replan_request(bytes),
+        5 => heatmaps(bytes),
+        6 => base_pose(bytes),
+        7 => heartbeat(bytes),
+        8 => camera_message(bytes),
         _ => arm_io(bytes),
-    }
-}
-
-fn overhead_frame(bytes: &[u8]) {
-    with_message::<OverheadFrame, _>(bytes, check_overhead_frame);
-}
-
-fn check_overhead_frame(msg: &OverheadFrame) {
-    let _ = msg.stamp_ns();
-    let h = msg.header;
-    match msg.image() {
-        Ok(pixels) => {
-            assert!(h.width_px >= 1 && h.width_px <= OVERHEAD_MAX_WIDTH_PX);
-            assert!(h.height_px >= 1 && h.height_px <= OVERHEAD_MAX_HEIGHT_PX);
-            assert_eq!(pixels.len(), (h.width_px * h.height_px) as usize);
-            let mut copy = zeroed::<OverheadFrame>();
-            assert_eq!(copy.set_image(h, pixels), Ok(()));
-            assert_eq!(copy.image(), Ok(pixels));
-        }
-        Err(e) => {
-            let _ = e.to_string();
-            let mut copy = zeroed::<OverheadFrame>();
-            assert!(copy.set_image(h, &[]).is_err());
-        }
-    }
-}
-
-fn plan(bytes: &[u8]) {
-    with_message::<PlanMsg, _>(bytes, check_plan);
-}
-
-fn check_plan(msg: &PlanMsg) {
-    let _ = msg.stamp_ns();
-    match msg.steps() {
-        Ok(steps) => {
-            assert_eq!(steps.len(), msg.step_count as usize);
-            assert!(steps.len() <= MAX_PLAN_STEPS);
-            for step in steps {
-                if let Ok(side) = step.side() {
-                    assert_eq!(raw(&step.with_side(side)), raw(step));
-                }
-            }
-            let mut copy = zeroed::<PlanMsg>();
-            assert_eq!(copy.set_steps(steps), Ok(()));
-            assert_eq!(copy.steps().map(raw_slice), Ok(raw_slice(steps)));
-        }
-        Err(e) => {
-            let _ = e.to_string();
-            assert!(msg.step_count as usize > MAX_PLAN_STEPS);
-        }
     }
 }
 

@@ -557,7 +557,7 @@ fn mission_log() -> Vec<Vec<u8>> {
 }
 
 fn ipc_messages() -> Vec<Vec<u8>> {
-    (0..12u8)
+    (0..10u8)
         .map(|which| {
             let mut out = vec![which];
             out.extend(bytes_of_message(which));

@@ -69,6 +69,7 @@ fn the_same_mission_twice_logs_the_same_messages_and_a_replay_reproduces_them() 
     for log in &logs {
         assert!(log.truncated.is_none(), "{:?}", log.truncated);
         assert_eq!(log.unknown, 0);
+        assert_eq!(log.log_format, grop_onboard::mission_log::LOG_FORMAT);
         for c in Channel::ALL {
             assert!(log.channel(c).count() > 0, "nothing on {}", c.topic());
         }

@@ -13,9 +13,12 @@
 //! * **iceoryx2**: `loan_uninit`, the image written in place in shared memory, `send`; the
 //!   service sized for one publisher and one subscriber (3 samples of 3.5 MiB). The times travel
 //!   in an iceoryx2 user header;
-//! * **grop-ipc**: the runtime's `TopicPublisher::publish_with` on `camera/frame`, which
-//!   zeroes the whole 3.5 MiB message before the image is written (as the HIL world's camera
-//!   does), and its `TopicSubscriber`;
+//! * **grop-ipc `publish_with`**: the runtime's generic `TopicPublisher::publish_with` on
+//!   `camera/frame`, which zeroes the whole 3.5 MiB message before the image is written (what
+//!   the HIL world's camera did before issue 23), and its `TopicSubscriber`;
+//! * **grop-ipc `publish_frame`**: `TopicPublisher::publish_frame`, which writes the header,
+//!   zeroes only the 921,600 image bytes the header describes and lets the image be written in
+//!   place (what the HIL world's camera does now), and the same subscriber;
 //! * **Unix socket** (stream, `write_all` / `read_exact`) and **TCP** on loopback
 //!   (`TCP_NODELAY`): the same 80-byte header and 921,600 image bytes, written into a reused
 //!   buffer and sent.
@@ -82,8 +85,11 @@ pub struct FrameTimes {
 pub enum Transport {
     /// iceoryx2 directly: loan, write in place, send.
     Iceoryx2,
-    /// The runtime's grop-ipc publisher (zeroes the 3.5 MiB message, then writes).
+    /// The runtime's grop-ipc publisher, generic `publish_with` (zeroes the 3.5 MiB message,
+    /// then writes).
     GropIpc,
+    /// The runtime's grop-ipc publisher, `publish_frame` (zeroes the image's bytes only).
+    GropIpcFrame,
     /// Unix domain stream socket.
     UnixSocket,
     /// TCP on loopback with TCP_NODELAY.
@@ -92,9 +98,10 @@ pub enum Transport {
 
 impl Transport {
     /// Every transport, in the report's order.
-    pub const ALL: [Transport; 4] = [
+    pub const ALL: [Transport; 5] = [
         Transport::Iceoryx2,
         Transport::GropIpc,
+        Transport::GropIpcFrame,
         Transport::UnixSocket,
         Transport::Tcp,
     ];
@@ -104,6 +111,7 @@ impl Transport {
         match self {
             Transport::Iceoryx2 => "iceoryx2 (loan_uninit, write in place, send)",
             Transport::GropIpc => "grop-ipc publish_with (zeroes 3.5 MiB, then writes)",
+            Transport::GropIpcFrame => "grop-ipc publish_frame (zeroes the image only, writes)",
             Transport::UnixSocket => "Unix stream socket",
             Transport::Tcp => "TCP loopback (TCP_NODELAY)",
         }
@@ -115,6 +123,7 @@ impl Transport {
             (Transport::Iceoryx2, WaitMode::Polling) => b'i',
             (Transport::Iceoryx2, WaitMode::Sleeping) => b'I',
             (Transport::GropIpc, _) => b'g',
+            (Transport::GropIpcFrame, _) => b'f',
             (Transport::UnixSocket, _) => b'u',
             (Transport::Tcp, _) => b't',
         }
@@ -444,7 +453,7 @@ pub fn measure(peer_exe: &Path, config: &CameraConfig) -> Result<CameraResult, B
     let mut modes = Vec::new();
     for mode in [WaitMode::Polling, WaitMode::Sleeping] {
         reader.set_mode(mode)?;
-        let mut cold = [(0u64, 0u64); 4];
+        let mut cold = [(0u64, 0u64); Transport::ALL.len()];
         for (index, transport) in Transport::ALL.into_iter().enumerate() {
             for k in 0..config.warmup_frames {
                 let before = ThreadUsage::now();
@@ -458,9 +467,9 @@ pub fn measure(peer_exe: &Path, config: &CameraConfig) -> Result<CameraResult, B
         // The peer prints its warm-up fault counts and starts counting anew.
         peer.send(b"w")?;
         let warm_line = peer.expect("warmup", Duration::from_secs(5))?;
-        let mut totals: [Vec<u64>; 4] = Default::default();
-        let mut transfers: [Vec<u64>; 4] = Default::default();
-        let mut faults = [0u64; 4];
+        let mut totals: [Vec<u64>; Transport::ALL.len()] = Default::default();
+        let mut transfers: [Vec<u64>; Transport::ALL.len()] = Default::default();
+        let mut faults = [0u64; Transport::ALL.len()];
         for round in 0..config.rounds {
             for k in 0..Transport::ALL.len() {
                 let index = (round + k) % Transport::ALL.len();
@@ -603,7 +612,7 @@ impl Reader<'_> {
                     }
                 }
             },
-            Transport::GropIpc => loop {
+            Transport::GropIpc | Transport::GropIpcFrame => loop {
                 let received = match mode {
                     WaitMode::Polling => {
                         let mut spins = 0u32;
@@ -752,8 +761,8 @@ pub fn run_publisher(args: &PublisherArgs) -> Result<(), BenchError> {
     let mut buffer = vec![1u8; STREAM_FRAME_BYTES];
     println!("ready");
 
-    let codes = *b"iIgut";
-    let mut faults = [0u64; 5];
+    let codes = *b"iIgfut";
+    let mut faults = [0u64; 6];
     let mut stdin = std::io::stdin().lock();
     let mut command = [0u8; 1];
     let mut seq = 0u64;
@@ -773,7 +782,7 @@ pub fn run_publisher(args: &PublisherArgs) -> Result<(), BenchError> {
                     line.push_str(&format!(" {}={n}", char::from(*c)));
                 }
                 println!("{line}");
-                faults = [0; 5];
+                faults = [0; 6];
                 continue;
             }
             _ => {}
@@ -802,6 +811,12 @@ pub fn run_publisher(args: &PublisherArgs) -> Result<(), BenchError> {
                         }
                     })
                     .map_err(|e| BenchError::setup("grop-ipc publish")(&e))?;
+            }
+            b'f' => {
+                let start = now_ns();
+                ipc_publisher
+                    .publish_frame(frame_header(seq, start), |image| render_bytes(image, seq))
+                    .map_err(|e| BenchError::setup("grop-ipc publish_frame")(&e))?;
             }
             b'u' => publish_stream(&mut uds, &mut buffer, seq)
                 .map_err(BenchError::io("writing to the Unix socket"))?,

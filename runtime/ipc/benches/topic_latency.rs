@@ -8,7 +8,7 @@ use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use criterion::{Criterion, criterion_group, criterion_main};
-use grop_ipc::{BaseStateMsg, IpcNode, OverheadFrame, OverheadFrameHeader, Topic};
+use grop_ipc::{BaseStateMsg, CameraFrameHeader, CameraFrameMsg, IpcNode, PixelFormat, Topic};
 
 type Samples = Arc<Mutex<Vec<Duration>>>;
 
@@ -88,39 +88,48 @@ fn fill_state(state: &mut BaseStateMsg, stamp_ns: u64) {
     state.speed_mps = 0.4;
 }
 
-fn fill_crop_frame(frame: &mut OverheadFrame, stamp_ns: u64) {
-    fill_frame(frame, stamp_ns, 64);
+fn fill_crop_frame(frame: &mut CameraFrameMsg, stamp_ns: u64) {
+    fill_frame(frame, stamp_ns, 64, 64, PixelFormat::Mono8);
 }
 
-fn fill_room_frame(frame: &mut OverheadFrame, stamp_ns: u64) {
-    fill_frame(frame, stamp_ns, 512);
+fn fill_room_frame(frame: &mut CameraFrameMsg, stamp_ns: u64) {
+    fill_frame(frame, stamp_ns, 640, 480, PixelFormat::Rgb8);
 }
 
 /// Writes the image in place, as a camera driver would (no intermediate buffer).
-fn fill_frame(frame: &mut OverheadFrame, stamp_ns: u64, side_px: u32) {
-    frame.header = OverheadFrameHeader {
+fn fill_frame(
+    frame: &mut CameraFrameMsg,
+    stamp_ns: u64,
+    width_px: u32,
+    height_px: u32,
+    format: PixelFormat,
+) {
+    let mut header = CameraFrameHeader {
         frame_id: stamp_ns,
         stamp_ns,
-        width_px: side_px,
-        height_px: side_px,
-        metres_per_px: 0.0625,
+        width_px,
+        height_px,
+        pixel_format: 0,
+        row_stride_bytes: width_px * format.bytes_per_px(),
+        metres_per_px: 0.03125,
         left_x_m: 0.0,
         top_y_m: 0.0,
     };
-    let count = (side_px * side_px) as usize;
-    for (index, pixel) in frame.pixels[..count].iter_mut().enumerate() {
-        *pixel = index as u8;
+    header.set_pixel_format(format);
+    let image = frame.image_mut(header).expect("a valid header");
+    for (index, byte) in image.iter_mut().enumerate() {
+        *byte = index as u8;
     }
 }
 
 fn latency(c: &mut Criterion) {
     let ns = |what: &str| format!("bench-{}-{what}", std::process::id());
     let state = one_way(c, "base_state", &ns("state"), fill_state);
-    let crop = one_way(c, "camera_64x64", &ns("crop"), fill_crop_frame);
-    let room = one_way(c, "camera_512x512", &ns("room"), fill_room_frame);
+    let crop = one_way(c, "camera_64x64_mono8", &ns("crop"), fill_crop_frame);
+    let room = one_way(c, "camera_640x480_rgb8", &ns("room"), fill_room_frame);
     report("one_way/base_state", &state);
-    report("one_way/camera_64x64", &crop);
-    report("one_way/camera_512x512 (incl. writing 256 KiB)", &room);
+    report("one_way/camera_64x64_mono8", &crop);
+    report("one_way/camera_640x480_rgb8 (incl. writing 900 KiB)", &room);
 }
 
 criterion_group! {

@@ -2,9 +2,8 @@
 //! room with the metric header the planner node needs to cut Psi's 64 x 32 views out of them
 //! (docs/architecture.md conventions: rows top-to-bottom = decreasing y, columns = increasing x).
 //!
-//! [`crate::OverheadFrame`] (v1, `camera/overhead`) stays as it is: a grayscale image of at most
-//! 512 x 512 px. This message carries up to 1280 x 960 RGB8 with a row stride, like a camera
-//! driver delivers it. As everywhere in this crate the bytes come from another process, so every
+//! The message carries up to 1280 x 960 RGB8 with a row stride, like a camera driver delivers
+//! it. As everywhere in this crate the bytes come from another process, so every
 //! size and enum field is checked by the accessors, which return [`MessageError`], never panic.
 
 use core::fmt;

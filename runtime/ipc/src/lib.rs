@@ -1,12 +1,10 @@
-//! The runtime's iceoryx2 services, typed: overhead camera frames, GROP plans, base and arm
-//! state, events. Every message is a `#[repr(C)]` plain-data type that travels zero-copy through
+//! The runtime's iceoryx2 services, typed: camera frames, GROP plans, base and arm state,
+//! events. Every message is a `#[repr(C)]` plain-data type that travels zero-copy through
 //! shared memory; every service name starts with a namespace, so that a robot, a HIL run and
 //! each test live side by side without seeing each other.
 //!
 //! | topic | message | history for late joiners |
 //! |---|---|---|
-//! | `<ns>/camera/overhead` | [`OverheadFrame`] (512 x 512 px max + header) | newest frame |
-//! | `<ns>/plan` | [`PlanMsg`] | newest plan |
 //! | `<ns>/base/state` | [`BaseStateMsg`] | newest state |
 //! | `<ns>/arm/state` | [`ArmStateMsg`] | newest state |
 //! | `<ns>/events` | [`EventMsg`] | none |
@@ -58,8 +56,7 @@ pub use camera::{
 };
 pub use messages::{
     ArmSafety, ArmStateMsg, BaseMode, BaseStateMsg, EVENT_DETAIL_CAPACITY, EventKind, EventMsg,
-    MAX_PLAN_STEPS, MessageError, OVERHEAD_MAX_HEIGHT_PX, OVERHEAD_MAX_PIXELS,
-    OVERHEAD_MAX_WIDTH_PX, OverheadFrame, OverheadFrameHeader, PlanMsg, PlanStep, TableSide,
+    MessageError, TableSide,
 };
 pub use mission::{
     BasePoseMsg, HEATMAP_COLS, HEATMAP_ROWS, HeartbeatMsg, HeatmapsMsg, LocationHeatmap,
@@ -67,8 +64,8 @@ pub use mission::{
     ReplanRequestMsg, TaskPlanMsg, TaskStep, TaskStepKind,
 };
 pub use port::{
-    IpcNode, NodeError, PortError, PublishError, ReceiveError, Received, TopicPublisher,
-    TopicSubscriber, wait_any,
+    FrameError, IpcNode, NodeError, PortError, PublishError, ReceiveError, Received,
+    TopicPublisher, TopicSubscriber, wait_any,
 };
 
 /// A message type with its service: name and queue sizes. Implemented for the message types of
@@ -77,7 +74,7 @@ pub use port::{
 pub trait Topic:
     sealed::Sealed + iceoryx2::prelude::ZeroCopySend + core::fmt::Debug + 'static
 {
-    /// Service name below the namespace, e.g. `camera/overhead`.
+    /// Service name below the namespace, e.g. `camera/frame`.
     const NAME: &'static str;
     /// How many of the newest messages a subscriber that joins late receives at once.
     const HISTORY: usize;
@@ -93,8 +90,6 @@ pub trait Topic:
 
 mod sealed {
     pub trait Sealed {}
-    impl Sealed for super::OverheadFrame {}
-    impl Sealed for super::PlanMsg {}
     impl Sealed for super::BaseStateMsg {}
     impl Sealed for super::ArmStateMsg {}
     impl Sealed for super::EventMsg {}
@@ -105,29 +100,6 @@ mod sealed {
     impl Sealed for super::HeartbeatMsg {}
     impl Sealed for super::CameraFrameMsg {}
     impl Sealed for super::ArmIoMsg {}
-}
-
-impl Topic for OverheadFrame {
-    const NAME: &'static str = "camera/overhead";
-    const HISTORY: usize = 1;
-    // Frames are 256 KiB: keep few per subscriber; the planner wants the newest anyway.
-    const BUFFER: usize = 2;
-    const MAX_SUBSCRIBERS: usize = 4;
-    const MAX_PUBLISHERS: usize = 2;
-    fn stamp_ns(&self) -> u64 {
-        self.header.stamp_ns
-    }
-}
-
-impl Topic for PlanMsg {
-    const NAME: &'static str = "plan";
-    const HISTORY: usize = 1;
-    const BUFFER: usize = 4;
-    const MAX_SUBSCRIBERS: usize = 8;
-    const MAX_PUBLISHERS: usize = 2;
-    fn stamp_ns(&self) -> u64 {
-        self.stamp_ns
-    }
 }
 
 impl Topic for BaseStateMsg {

@@ -2,9 +2,8 @@
 //!
 //! Shared memory is written by other processes, so nothing here is trusted: enums travel as
 //! integers and counts/lengths are checked by the accessors, which return [`MessageError`].
-//! All-zero bytes are a valid value of every type (the publisher starts every loan from zeros).
-
-use core::fmt;
+//! All-zero bytes are a valid value of every type (`publish_with` starts every loan from zeros;
+//! `publish_frame` zeroes the image bytes a camera frame's header describes).
 
 use iceoryx2::prelude::ZeroCopySend;
 
@@ -34,9 +33,9 @@ pub enum MessageError {
         /// The array's capacity.
         capacity: u64,
     },
-    /// An image's width or height is zero, or `width * height` exceeds the pixel buffer.
+    /// An image's width or height is zero, or larger than the frame buffer holds.
     #[error(
-        "overhead frame of {width_px} x {height_px} px does not fit the {max_width_px} x {max_height_px} px buffer (or is empty)"
+        "camera frame of {width_px} x {height_px} px does not fit the {max_width_px} x {max_height_px} px buffer (or is empty)"
     )]
     BadImageSize {
         /// Width found.
@@ -64,107 +63,7 @@ pub enum MessageError {
 }
 
 // ---------------------------------------------------------------------------------------------
-// camera/overhead
-
-/// Widest overhead image the frame buffer holds.
-pub const OVERHEAD_MAX_WIDTH_PX: u32 = 512;
-/// Tallest overhead image the frame buffer holds.
-pub const OVERHEAD_MAX_HEIGHT_PX: u32 = 512;
-/// Pixel capacity: a 512 x 512 px image is a 32 m x 32 m room at 6.25 cm per pixel, or one
-/// 64 x 64 px target view.
-pub const OVERHEAD_MAX_PIXELS: usize = (OVERHEAD_MAX_WIDTH_PX * OVERHEAD_MAX_HEIGHT_PX) as usize;
-
-/// Where an overhead image sits in the world frame (docs/architecture.md conventions: rows
-/// top-to-bottom = decreasing y, columns left-to-right = increasing x).
-#[derive(Clone, Copy, Debug, PartialEq, ZeroCopySend)]
-#[repr(C)]
-#[type_name("grop_ipc::OverheadFrameHeader/v1")]
-pub struct OverheadFrameHeader {
-    /// Camera frame counter, increasing.
-    pub frame_id: u64,
-    /// Capture time on the runtime clock, nanoseconds.
-    pub stamp_ns: u64,
-    /// Image width, pixels.
-    pub width_px: u32,
-    /// Image height, pixels.
-    pub height_px: u32,
-    /// Edge length of one pixel, metres (0.0625 for the paper's camera).
-    pub metres_per_px: f64,
-    /// World x of the left edge of column 0, metres.
-    pub left_x_m: f64,
-    /// World y of the top edge of row 0, metres.
-    pub top_y_m: f64,
-}
-
-/// One grayscale overhead image (`camera/overhead`), fixed size so it travels zero-copy.
-#[derive(Clone, ZeroCopySend)]
-#[repr(C)]
-#[type_name("grop_ipc::OverheadFrame/v1")]
-pub struct OverheadFrame {
-    /// Frame id, time and geometry.
-    pub header: OverheadFrameHeader,
-    /// Row-major grayscale pixels; only the first `width_px * height_px` are meaningful.
-    pub pixels: [u8; OVERHEAD_MAX_PIXELS],
-}
-
-impl OverheadFrame {
-    /// The image's pixels, row-major, after checking the size fields.
-    pub fn image(&self) -> Result<&[u8], MessageError> {
-        let count = checked_pixel_count(self.header.width_px, self.header.height_px)?;
-        Ok(&self.pixels[..count])
-    }
-
-    /// Sets the header and copies `pixels` (row-major, `width_px * height_px` of them) in.
-    pub fn set_image(
-        &mut self,
-        header: OverheadFrameHeader,
-        pixels: &[u8],
-    ) -> Result<(), MessageError> {
-        let count = checked_pixel_count(header.width_px, header.height_px)?;
-        if pixels.len() != count {
-            return Err(MessageError::CountTooLarge {
-                message: "OverheadFrame",
-                field: "pixels (must equal width_px * height_px)",
-                count: pixels.len() as u64,
-                capacity: count as u64,
-            });
-        }
-        self.header = header;
-        self.pixels[..count].copy_from_slice(pixels);
-        Ok(())
-    }
-}
-
-fn checked_pixel_count(width_px: u32, height_px: u32) -> Result<usize, MessageError> {
-    let fits = width_px > 0
-        && height_px > 0
-        && width_px <= OVERHEAD_MAX_WIDTH_PX
-        && height_px <= OVERHEAD_MAX_HEIGHT_PX;
-    if fits {
-        Ok((width_px * height_px) as usize)
-    } else {
-        Err(MessageError::BadImageSize {
-            width_px,
-            height_px,
-            max_width_px: OVERHEAD_MAX_WIDTH_PX,
-            max_height_px: OVERHEAD_MAX_HEIGHT_PX,
-        })
-    }
-}
-
-impl fmt::Debug for OverheadFrame {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.debug_struct("OverheadFrame")
-            .field("header", &self.header)
-            .finish_non_exhaustive()
-    }
-}
-
-// ---------------------------------------------------------------------------------------------
-// plan
-
-/// Most unload steps one plan message carries.
-pub const MAX_PLAN_STEPS: usize = 16;
+// table sides (plan/task, plan/request)
 
 /// Which side of the banquet table the robot unloads from.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -193,100 +92,6 @@ impl TableSide {
                 value: other as u32,
             }),
         }
-    }
-}
-
-/// One step of a task plan: drive to a navigation goal, unload one object there.
-#[derive(Clone, Copy, Debug, PartialEq, ZeroCopySend)]
-#[repr(C)]
-#[type_name("grop_ipc::PlanStep/v1")]
-pub struct PlanStep {
-    /// Index of the object in the task.
-    pub object_index: u32,
-    /// +1 near side, -1 far side (the dataset's convention); read with [`PlanStep::side`].
-    pub side: i32,
-    /// Object goal on the table, world frame, metres.
-    pub target_m: [f64; 3],
-    /// Navigation goal of the base (drawn by Smp), world x, metres.
-    pub goal_x_m: f64,
-    /// Navigation goal, world y, metres.
-    pub goal_y_m: f64,
-    /// Base heading at the goal, radians (facing the table).
-    pub goal_yaw_rad: f64,
-    /// Feasibility F of this (target, side) pair, 0..=1 (eq. 4, closed form).
-    pub feasibility: f64,
-    /// Travel time from the previous location to the goal, seconds.
-    pub travel_cost_s: f64,
-}
-
-impl PlanStep {
-    /// A step with the given side (sets the wire value).
-    pub fn with_side(mut self, side: TableSide) -> Self {
-        self.side = side.to_wire();
-        self
-    }
-
-    /// The table side, checked.
-    pub fn side(&self) -> Result<TableSide, MessageError> {
-        TableSide::from_wire(self.side, "PlanStep")
-    }
-}
-
-/// The plan chosen by GROP (`plan`): the argmax of U(p) = R * F(p) - C(p) (paper eq. 1,
-/// `eqn:utility`) with its steps in execution order.
-#[derive(Clone, Copy, Debug, PartialEq, ZeroCopySend)]
-#[repr(C)]
-#[type_name("grop_ipc::PlanMsg/v1")]
-pub struct PlanMsg {
-    /// Plan counter; a replan gets a new id.
-    pub plan_id: u64,
-    /// Planning time on the runtime clock, nanoseconds.
-    pub stamp_ns: u64,
-    /// Id of the camera frame the plan was made from.
-    pub source_frame_id: u64,
-    /// Utility U(p) = R * F(p) - C(p).
-    pub utility: f64,
-    /// Plan feasibility F(p).
-    pub feasibility: f64,
-    /// Plan cost C(p): travel time, seconds.
-    pub cost_s: f64,
-    /// Success reward R.
-    pub reward: f64,
-    /// Number of valid entries in `steps`; read with [`PlanMsg::steps`].
-    pub step_count: u32,
-    /// Keeps `steps` 8-byte aligned without hidden padding.
-    pub reserved: u32,
-    /// The steps; only the first `step_count` are meaningful.
-    pub steps: [PlanStep; MAX_PLAN_STEPS],
-}
-
-impl PlanMsg {
-    /// The plan's steps, after checking `step_count`.
-    pub fn steps(&self) -> Result<&[PlanStep], MessageError> {
-        let count = self.step_count as usize;
-        self.steps.get(..count).ok_or(MessageError::CountTooLarge {
-            message: "PlanMsg",
-            field: "step_count",
-            count: u64::from(self.step_count),
-            capacity: MAX_PLAN_STEPS as u64,
-        })
-    }
-
-    /// Replaces the steps; fails if there are more than [`MAX_PLAN_STEPS`].
-    pub fn set_steps(&mut self, steps: &[PlanStep]) -> Result<(), MessageError> {
-        let slots = self
-            .steps
-            .get_mut(..steps.len())
-            .ok_or(MessageError::CountTooLarge {
-                message: "PlanMsg",
-                field: "steps",
-                count: steps.len() as u64,
-                capacity: MAX_PLAN_STEPS as u64,
-            })?;
-        slots.copy_from_slice(steps);
-        // Cannot truncate: at most MAX_PLAN_STEPS.
-        self.step_count = steps.len() as u32;
-        Ok(())
     }
 }
 
@@ -629,10 +434,6 @@ mod tests {
     /// The layouts are the protocol between processes: a change must bump the `/vN` type names.
     #[test]
     fn wire_sizes_are_fixed() {
-        assert_eq!(size_of::<OverheadFrameHeader>(), 48);
-        assert_eq!(size_of::<OverheadFrame>(), 48 + OVERHEAD_MAX_PIXELS);
-        assert_eq!(size_of::<PlanStep>(), 72);
-        assert_eq!(size_of::<PlanMsg>(), 64 + 72 * MAX_PLAN_STEPS);
         assert_eq!(size_of::<BaseStateMsg>(), 88);
         assert_eq!(size_of::<ArmStateMsg>(), 184);
         assert_eq!(size_of::<EventMsg>(), 152);

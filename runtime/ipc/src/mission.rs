@@ -171,7 +171,7 @@ impl TaskStep {
     }
 }
 
-/// A task plan (`plan/task`, version 2 of `plan`): the argmax of U(p) = R * F(p) - C(p)
+/// A task plan (`plan/task`): the argmax of U(p) = R * F(p) - C(p)
 /// (paper eq. 1) as the executive runs it, with load steps and room for whole table settings.
 #[derive(Clone, Copy, Debug, PartialEq, ZeroCopySend)]
 #[repr(C)]

@@ -13,7 +13,7 @@ use iceoryx2::prelude::*;
 use iceoryx2::sample::Sample;
 use iceoryx2::service::port_factory::{event, publish_subscribe};
 
-use crate::Topic;
+use crate::{CameraFrameHeader, CameraFrameMsg, MessageError, Topic};
 
 type Ipc = ipc_threadsafe::Service;
 
@@ -91,6 +91,18 @@ pub struct PublishError {
     pub service: String,
     /// iceoryx2's reason.
     pub detail: String,
+}
+
+/// Why a camera frame was not published ([`TopicPublisher::publish_frame`]). It was not sent.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum FrameError {
+    /// The header does not describe an image the message holds.
+    #[error("camera frame header: {0}")]
+    Header(#[from] MessageError),
+    /// iceoryx2 could not loan or send the message.
+    #[error(transparent)]
+    Publish(#[from] PublishError),
 }
 
 /// Why receiving failed.
@@ -333,17 +345,39 @@ impl<T: Topic> TopicPublisher<T> {
         Ok(())
     }
 
-    /// Loans a message in shared memory, zeroed, lets `fill` write it in place (no copy of a
-    /// large frame), then publishes it. Returns the number of subscribers it reached.
-    pub fn publish_with(&self, fill: impl FnOnce(&mut T)) -> Result<usize, PublishError> {
-        let error = |detail: String| PublishError {
+    fn error(&self, detail: String) -> PublishError {
+        PublishError {
             service: self.service.clone(),
             detail,
-        };
+        }
+    }
+
+    /// Sends a written sample and wakes the subscribers; returns how many it reached.
+    fn send(
+        &self,
+        sample: iceoryx2::sample_mut::SampleMut<Ipc, T, ()>,
+    ) -> Result<usize, PublishError> {
+        let reached = sample
+            .send()
+            .map_err(|e| self.error(format!("send: {e:?}")))?;
+        // The message is out; a failed wake-up only delays readers to their timeout.
+        if let Err(wake_error) = self.notifier.notify() {
+            log::warn!(
+                "{}: wake-up notification failed: {wake_error:?}",
+                self.service
+            );
+        }
+        Ok(reached)
+    }
+
+    /// Loans a message in shared memory, zeroed, lets `fill` write it in place (no copy of a
+    /// large frame), then publishes it. Returns the number of subscribers it reached. For camera
+    /// frames [`publish_frame`](TopicPublisher::publish_frame) zeroes only the image's bytes.
+    pub fn publish_with(&self, fill: impl FnOnce(&mut T)) -> Result<usize, PublishError> {
         let mut sample = self
             .publisher
             .loan_uninit()
-            .map_err(|e| error(format!("loan: {e:?}")))?;
+            .map_err(|e| self.error(format!("loan: {e:?}")))?;
         let payload = sample.payload_mut().as_mut_ptr();
         // SAFETY: `payload` points to the loaned, properly aligned slot for one `T`. Every `T`
         // (Topic is sealed to this crate's message types) is `#[repr(C)]` plain data made of
@@ -353,15 +387,7 @@ impl<T: Topic> TopicPublisher<T> {
             sample.assume_init()
         };
         fill(sample.payload_mut());
-        let reached = sample.send().map_err(|e| error(format!("send: {e:?}")))?;
-        // The message is out; a failed wake-up only delays readers to their timeout.
-        if let Err(wake_error) = self.notifier.notify() {
-            log::warn!(
-                "{}: wake-up notification failed: {wake_error:?}",
-                self.service
-            );
-        }
-        Ok(reached)
+        self.send(sample)
     }
 
     /// Publishes a copy of `message` (for small messages; use
@@ -376,6 +402,49 @@ impl<T: Topic> TopicPublisher<T> {
     /// Full service name.
     pub fn service(&self) -> &str {
         &self.service
+    }
+}
+
+impl TopicPublisher<CameraFrameMsg> {
+    /// Publishes one camera frame written in place: checks `header` and stores it, zeroes the
+    /// image bytes it describes (`row_stride_bytes * height_px`: 921,600 of the 3.5 MiB buffer
+    /// for 640 x 480 RGB8), lets `fill` write them, and sends. The rest of the buffer, which
+    /// the header says is unused, is neither zeroed nor written (`publish_with` zeroes all of
+    /// it, about four times the work for a 640 x 480 frame; docs/latency.md). A header that
+    /// does not check is an error and nothing is sent.
+    pub fn publish_frame(
+        &self,
+        header: CameraFrameHeader,
+        fill: impl FnOnce(&mut [u8]),
+    ) -> Result<usize, FrameError> {
+        let len = header.checked_len()?;
+        let mut sample = self
+            .publisher
+            .loan_uninit()
+            .map_err(|e| self.error(format!("loan: {e:?}")))?;
+        let frame = sample.payload_mut().as_mut_ptr();
+        // SAFETY: `frame` points to the loaned slot for one CameraFrameMsg: aligned, inside the
+        // publisher's data segment, and ours alone until it is sent. Only raw pointers to its
+        // fields are formed (no reference to the whole, not yet initialised message). `len` is
+        // at most CAMERA_MAX_BYTES (`checked_len`), so the zeroed bytes and the slice lie inside
+        // `pixels`; the slice is handed to `fill` and not used after it returns.
+        let image = unsafe {
+            core::ptr::addr_of_mut!((*frame).header).write(header);
+            let pixels = core::ptr::addr_of_mut!((*frame).pixels).cast::<u8>();
+            pixels.write_bytes(0, len);
+            core::slice::from_raw_parts_mut(pixels, len)
+        };
+        fill(image);
+        // SAFETY: the header and the image bytes are written above. The pixel bytes beyond
+        // `len` are left as they are: they lie in the publisher's data segment, a shared-memory
+        // file the OS zero-filled when it was created (iceoryx2 zeroes it too), into which this
+        // crate only ever writes whole messages of padding-free plain data (`Topic` is sealed to
+        // them; the `wire_sizes_are_fixed` tests pin their layouts). So they are initialised
+        // bytes (zeros, or pixels of an earlier frame of this publisher), valid `u8` values,
+        // and a subscriber that reads or copies the whole message reads no uninitialised byte.
+        // None of them carries meaning: `CameraFrameMsg::image` ends at the header's length.
+        let sample = unsafe { sample.assume_init() };
+        Ok(self.send(sample)?)
     }
 }
 

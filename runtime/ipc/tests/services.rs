@@ -4,9 +4,9 @@ use std::sync::atomic::{AtomicU32, Ordering};
 use std::time::Duration;
 
 use grop_ipc::{
-    ArmSafety, ArmStateMsg, BaseMode, BaseStateMsg, EventKind, EventMsg, IpcNode, MessageError,
-    NodeError, OVERHEAD_MAX_HEIGHT_PX, OVERHEAD_MAX_WIDTH_PX, OverheadFrame, OverheadFrameHeader,
-    PlanMsg, PlanStep, TableSide,
+    ArmSafety, ArmStateMsg, BaseMode, BaseStateMsg, CAMERA_MAX_HEIGHT_PX, CAMERA_MAX_WIDTH_PX,
+    CameraFrameHeader, CameraFrameMsg, EventKind, EventMsg, IpcNode, MAX_TASK_STEPS, MessageError,
+    NodeError, PixelFormat, TableSide, TaskPlanMsg, TaskStep,
 };
 
 const WAIT: Duration = Duration::from_secs(5);
@@ -97,27 +97,45 @@ fn zeroed_arm_state() -> ArmStateMsg {
     }
 }
 
+fn camera_header(
+    frame_id: u64,
+    width_px: u32,
+    height_px: u32,
+    format: PixelFormat,
+) -> CameraFrameHeader {
+    let mut header = CameraFrameHeader {
+        frame_id,
+        stamp_ns: 5,
+        width_px,
+        height_px,
+        pixel_format: 0,
+        row_stride_bytes: width_px * format.bytes_per_px(),
+        metres_per_px: 0.03125,
+        left_x_m: -10.0,
+        top_y_m: 11.5,
+    };
+    header.set_pixel_format(format);
+    header
+}
+
 #[test]
 fn camera_frames_travel_in_place_at_both_sizes() {
     let (pub_node, sub_node) = two_nodes("camera");
-    let publisher = pub_node.publisher::<OverheadFrame>().unwrap();
-    let subscriber = sub_node.subscriber::<OverheadFrame>().unwrap();
-    for (frame_id, width_px, height_px) in [
-        (1u64, 64u32, 64u32),
-        (2, OVERHEAD_MAX_WIDTH_PX, OVERHEAD_MAX_HEIGHT_PX),
+    let publisher = pub_node.publisher::<CameraFrameMsg>().unwrap();
+    let subscriber = sub_node.subscriber::<CameraFrameMsg>().unwrap();
+    for header in [
+        camera_header(1, 64, 64, PixelFormat::Mono8),
+        camera_header(
+            2,
+            CAMERA_MAX_WIDTH_PX,
+            CAMERA_MAX_HEIGHT_PX,
+            PixelFormat::Rgb8,
+        ),
     ] {
-        let pixels: Vec<u8> = (0..width_px * height_px)
-            .map(|i| (i % 251) as u8 ^ frame_id as u8)
+        let len = header.checked_len().unwrap();
+        let pixels: Vec<u8> = (0..len)
+            .map(|i| (i % 251) as u8 ^ header.frame_id as u8)
             .collect();
-        let header = OverheadFrameHeader {
-            frame_id,
-            stamp_ns: 5,
-            width_px,
-            height_px,
-            metres_per_px: 0.0625,
-            left_x_m: -2.0,
-            top_y_m: 8.0,
-        };
         let mut filled = Ok(());
         publisher
             .publish_with(|frame| filled = frame.set_image(header, &pixels))
@@ -133,30 +151,76 @@ fn camera_frames_travel_in_place_at_both_sizes() {
 }
 
 #[test]
+fn publish_frame_writes_only_the_image_the_header_describes() {
+    let (pub_node, sub_node) = two_nodes("frame");
+    let publisher = pub_node.publisher::<CameraFrameMsg>().unwrap();
+    let subscriber = sub_node.subscriber::<CameraFrameMsg>().unwrap();
+    // Large, then small, then large again: the slots are reused, and each frame reads back as
+    // exactly what its header describes, whatever an earlier frame left in the buffer.
+    for (header, fill_byte) in [
+        (camera_header(1, 640, 480, PixelFormat::Rgb8), 0xAB),
+        (camera_header(2, 64, 64, PixelFormat::Mono8), 0x11),
+        (camera_header(3, 1280, 960, PixelFormat::Rgb8), 0x5C),
+        (camera_header(4, 3, 2, PixelFormat::Mono8), 0x77),
+    ] {
+        let len = header.checked_len().unwrap();
+        let mut seen = None;
+        let reached = publisher
+            .publish_frame(header, |image| {
+                // The image bytes come zeroed, whatever the slot held before.
+                seen = Some((image.len(), image.iter().all(|b| *b == 0)));
+                for (i, byte) in image.iter_mut().enumerate() {
+                    *byte = fill_byte ^ (i % 7) as u8;
+                }
+            })
+            .unwrap();
+        assert_eq!(reached, 1);
+        assert_eq!(seen, Some((len, true)));
+        let frame = subscriber
+            .recv_timeout(WAIT)
+            .unwrap()
+            .expect("frame arrives");
+        assert_eq!(frame.header, header);
+        let image = frame.image().unwrap();
+        assert_eq!(image.len(), len);
+        assert!(
+            image
+                .iter()
+                .enumerate()
+                .all(|(i, b)| *b == fill_byte ^ (i % 7) as u8)
+        );
+    }
+    // A header that does not check is refused before anything is loaned or sent.
+    let bad = camera_header(5, 2000, 10, PixelFormat::Mono8);
+    let mut called = false;
+    let refused = publisher.publish_frame(bad, |_| called = true);
+    assert!(matches!(
+        refused,
+        Err(grop_ipc::FrameError::Header(
+            MessageError::BadImageSize { .. }
+        ))
+    ));
+    assert!(!called);
+    assert!(subscriber.try_recv().unwrap().is_none());
+}
+
+#[test]
 fn bad_image_sizes_are_errors_on_both_ends() {
     let (pub_node, sub_node) = two_nodes("badimage");
-    let publisher = pub_node.publisher::<OverheadFrame>().unwrap();
-    let subscriber = sub_node.subscriber::<OverheadFrame>().unwrap();
-    let header = OverheadFrameHeader {
-        frame_id: 1,
-        stamp_ns: 0,
-        width_px: 1000,
-        height_px: 10,
-        metres_per_px: 0.0625,
-        left_x_m: 0.0,
-        top_y_m: 0.0,
-    };
+    let publisher = pub_node.publisher::<CameraFrameMsg>().unwrap();
+    let subscriber = sub_node.subscriber::<CameraFrameMsg>().unwrap();
+    let header = camera_header(1, 2000, 10, PixelFormat::Mono8);
     let mut filled = Ok(());
     publisher
         .publish_with(|frame| {
-            filled = frame.set_image(header, &[0; 10_000]);
+            filled = frame.set_image(header, &[0; 20_000]);
             // A buggy or foreign publisher could still write such a header directly.
             frame.header = header;
         })
         .unwrap();
     assert!(matches!(
         filled,
-        Err(MessageError::BadImageSize { width_px: 1000, .. })
+        Err(MessageError::BadImageSize { width_px: 2000, .. })
     ));
     let frame = subscriber
         .recv_timeout(WAIT)
@@ -168,26 +232,26 @@ fn bad_image_sizes_are_errors_on_both_ends() {
     ));
 }
 
-fn step(object_index: u32, side: TableSide, x_m: f64) -> PlanStep {
-    PlanStep {
+fn unload(object_index: u32, side: TableSide, x_m: f64) -> TaskStep {
+    TaskStep::unload(
         object_index,
-        side: 0,
-        target_m: [x_m, 6.0, 1.3],
-        goal_x_m: x_m,
-        goal_y_m: 5.0,
-        goal_yaw_rad: std::f64::consts::FRAC_PI_2,
-        feasibility: 0.8,
-        travel_cost_s: 12.5,
-    }
-    .with_side(side)
+        side,
+        [x_m, 6.0, 1.3],
+        [x_m, 5.0, std::f64::consts::FRAC_PI_2],
+        0.8,
+    )
 }
 
 #[test]
 fn plans_carry_their_steps_and_reject_bad_counts() {
     let (pub_node, sub_node) = two_nodes("plan");
-    let publisher = pub_node.publisher::<PlanMsg>().unwrap();
-    let subscriber = sub_node.subscriber::<PlanMsg>().unwrap();
-    let steps = [step(0, TableSide::Near, -1.5), step(2, TableSide::Far, 3.0)];
+    let publisher = pub_node.publisher::<TaskPlanMsg>().unwrap();
+    let subscriber = sub_node.subscriber::<TaskPlanMsg>().unwrap();
+    let steps = [
+        TaskStep::navigate(-1.5, 5.0, 1.57, 12.5),
+        unload(0, TableSide::Near, -1.5),
+        unload(2, TableSide::Far, 3.0),
+    ];
     let mut set = Ok(());
     publisher
         .publish_with(|plan| {
@@ -206,12 +270,12 @@ fn plans_carry_their_steps_and_reject_bad_counts() {
         .expect("plan arrives");
     assert_eq!(plan.plan_id, 3);
     assert_eq!(plan.steps().unwrap(), &steps[..]);
-    assert_eq!(plan.steps().unwrap()[1].side(), Ok(TableSide::Far));
+    assert_eq!(plan.steps().unwrap()[2].side(), Ok(TableSide::Far));
 
     // A corrupted count or side from another process is an error, not a panic.
     publisher
         .publish_with(|plan| {
-            plan.step_count = 99;
+            plan.step_count = 999;
             plan.steps[0].side = 5;
         })
         .unwrap();
@@ -221,12 +285,14 @@ fn plans_carry_their_steps_and_reject_bad_counts() {
         .expect("plan arrives");
     assert!(matches!(
         bad.steps(),
-        Err(MessageError::CountTooLarge { count: 99, .. })
+        Err(MessageError::CountTooLarge { count: 999, .. })
     ));
     assert!(bad.steps[0].side().is_err());
     let mut too_long = Ok(());
     publisher
-        .publish_with(|plan| too_long = plan.set_steps(&[step(0, TableSide::Near, 0.0); 17]))
+        .publish_with(|plan| {
+            too_long = plan.set_steps(&[unload(0, TableSide::Near, 0.0); MAX_TASK_STEPS + 1]);
+        })
         .unwrap();
     assert!(too_long.is_err());
 }
@@ -234,10 +300,10 @@ fn plans_carry_their_steps_and_reject_bad_counts() {
 #[test]
 fn a_late_subscriber_gets_the_current_plan() {
     let (pub_node, sub_node) = two_nodes("history");
-    let mut publisher = pub_node.publisher::<PlanMsg>().unwrap();
+    let mut publisher = pub_node.publisher::<TaskPlanMsg>().unwrap();
     publisher.publish_with(|plan| plan.plan_id = 1).unwrap();
     publisher.publish_with(|plan| plan.plan_id = 2).unwrap();
-    let subscriber = sub_node.subscriber::<PlanMsg>().unwrap();
+    let subscriber = sub_node.subscriber::<TaskPlanMsg>().unwrap();
     // The planner's cycle hands the history to subscribers that joined meanwhile.
     publisher.serve_late_subscribers().unwrap();
     let plan = subscriber.recv_timeout(WAIT).unwrap().expect("history");
@@ -354,17 +420,9 @@ fn child_process_role() {
     };
     let node = IpcNode::new(&namespace, "child").unwrap();
     let done = node.subscriber::<EventMsg>().unwrap();
-    let frames = node.publisher::<OverheadFrame>().unwrap();
+    let frames = node.publisher::<CameraFrameMsg>().unwrap();
     let states = node.publisher::<BaseStateMsg>().unwrap();
-    let header = OverheadFrameHeader {
-        frame_id: 42,
-        stamp_ns: 1,
-        width_px: 64,
-        height_px: 64,
-        metres_per_px: 0.0625,
-        left_x_m: -2.0,
-        top_y_m: 8.0,
-    };
+    let header = camera_header(42, 64, 64, PixelFormat::Mono8);
     let pixels: Vec<u8> = (0..64 * 64).map(|i| (i * 7 % 256) as u8).collect();
     frames
         .publish_with(|frame| frame.set_image(header, &pixels).unwrap())
@@ -384,7 +442,7 @@ fn child_process_role() {
 fn services_work_across_two_processes() {
     let namespace = unique_namespace("xproc");
     let node = IpcNode::new(&namespace, "parent").unwrap();
-    let frames = node.subscriber::<OverheadFrame>().unwrap();
+    let frames = node.subscriber::<CameraFrameMsg>().unwrap();
     let states = node.subscriber::<BaseStateMsg>().unwrap();
     let done = node.publisher::<EventMsg>().unwrap();
     let mut child = std::process::Command::new(std::env::current_exe().unwrap())

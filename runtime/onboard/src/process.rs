@@ -5,9 +5,27 @@
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 
-use anyhow::Context;
+use crate::deployment::{Deployment, DeploymentError};
 
-use crate::deployment::Deployment;
+/// Why a process could not start.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum StartError {
+    /// The signal handler could not be installed.
+    #[error("installing the handler for signal {signal} failed")]
+    Signal {
+        /// The signal number.
+        signal: i32,
+        /// What the system said.
+        source: std::io::Error,
+    },
+    /// The deployment file could not be read or is invalid.
+    #[error(transparent)]
+    Deployment(#[from] DeploymentError),
+    /// The command line's `--namespace` / `--clock` made the deployment invalid.
+    #[error("the deployment with the command-line overrides")]
+    Overrides(#[source] DeploymentError),
+}
 
 /// Set by the signal handler, read by the loops.
 static STOP: AtomicBool = AtomicBool::new(false);
@@ -18,13 +36,16 @@ extern "C" fn on_signal(_signal: libc::c_int) {
 }
 
 /// Installs the SIGTERM and SIGINT handlers and returns the flag they set.
-pub fn stop_flag() -> anyhow::Result<&'static AtomicBool> {
+pub fn stop_flag() -> Result<&'static AtomicBool, StartError> {
     for signal in [libc::SIGTERM, libc::SIGINT] {
         let handler: extern "C" fn(libc::c_int) = on_signal;
         // SAFETY: installs an async-signal-safe handler (one atomic store) for a valid signal.
         let previous = unsafe { libc::signal(signal, handler as libc::sighandler_t) };
         if previous == libc::SIG_ERR {
-            anyhow::bail!("installing the handler for signal {signal} failed");
+            return Err(StartError::Signal {
+                signal,
+                source: std::io::Error::last_os_error(),
+            });
         }
     }
     Ok(&STOP)
@@ -67,7 +88,7 @@ impl DeploymentArgs {
     }
 
     /// The deployment these options name, overrides applied and validated.
-    pub fn load(&self) -> anyhow::Result<Deployment> {
+    pub fn load(&self) -> Result<Deployment, StartError> {
         load_deployment(&self.deployment, self.namespace.clone(), self.clock.clone())
     }
 }
@@ -78,7 +99,7 @@ pub fn load_deployment(
     path: &Path,
     namespace: Option<String>,
     clock: Option<String>,
-) -> anyhow::Result<Deployment> {
+) -> Result<Deployment, StartError> {
     let mut deployment = Deployment::load(path)?;
     if let Some(namespace) = namespace {
         deployment.namespace = namespace;
@@ -86,8 +107,6 @@ pub fn load_deployment(
     if let Some(clock) = clock {
         deployment.clock = clock;
     }
-    deployment
-        .validate()
-        .context("the deployment with the command-line overrides")?;
+    deployment.validate().map_err(StartError::Overrides)?;
     Ok(deployment)
 }

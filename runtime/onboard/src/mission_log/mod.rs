@@ -20,6 +20,18 @@ pub use recorder::{Recorder, RecorderConfig};
 pub mod replay;
 pub use writer::{LogWriter, Overflow, WriterConfig, WriterSummary};
 
+/// Name of the metadata record that says which format the log is written in (`log_format`), and
+/// by which build (`writer`). The writer puts it first in every log.
+pub const LOG_METADATA: &str = "grop.log";
+/// The format version this build writes (the `log_format` of [`LOG_METADATA`]). Every change to
+/// a logged message raises it: a field added, removed, renamed or given another meaning or unit,
+/// a channel added, removed or renamed. A log without it is version 1. The reader and
+/// `grop replay` read every version from [`OLDEST_LOG_FORMAT`] up to this one (docs/logs.md has
+/// the history of the versions).
+pub const LOG_FORMAT: u32 = 2;
+/// The oldest format version this build reads.
+pub const OLDEST_LOG_FORMAT: u32 = 1;
+
 /// Name of the metadata record that describes the mission (what a replay needs).
 pub const MISSION_METADATA: &str = "grop.mission";
 /// Name of the metadata record with the recorder's settings.
@@ -47,6 +59,31 @@ pub enum LogError {
         stage: &'static str,
         /// The library's error.
         detail: String,
+    },
+    /// The log's `log_format` is not a version this build reads (a newer build wrote it).
+    #[error(
+        "mission log {}: log_format {found} is not a version this build reads ({oldest} to {newest}): it was written by a newer grop; read it with that build",
+        path.display(),
+        oldest = OLDEST_LOG_FORMAT,
+        newest = LOG_FORMAT
+    )]
+    UnknownFormat {
+        /// The file.
+        path: PathBuf,
+        /// The version the log names.
+        found: u32,
+    },
+    /// The log's `log_format` is not a version number.
+    #[error(
+        "mission log {}: the `{record}` metadata's log_format {value:?} is not a version number",
+        path.display(),
+        record = LOG_METADATA
+    )]
+    BadFormat {
+        /// The file.
+        path: PathBuf,
+        /// What the field holds.
+        value: String,
     },
     /// The writer thread died.
     #[error("mission log {}: the writer thread panicked", path.display())]

@@ -6,8 +6,8 @@ use std::path::Path;
 
 use sha2::{Digest, Sha256};
 
-use super::LogError;
 use super::codec::Channel;
+use super::{LOG_FORMAT, LOG_METADATA, LogError, OLDEST_LOG_FORMAT};
 
 /// One logged message.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -23,8 +23,12 @@ pub struct LoggedMessage {
 }
 
 /// A mission log in memory.
-#[derive(Debug, Clone, Default)]
+#[derive(Debug, Clone)]
 pub struct MissionLog {
+    /// The format version it is written in (`log_format` of the [`LOG_METADATA`] record; 1 for
+    /// a log without it), between [`OLDEST_LOG_FORMAT`] and [`LOG_FORMAT`]. Decoders of a
+    /// message whose shape changed between versions choose by it.
+    pub log_format: u32,
     /// Metadata records: name -> key/value pairs.
     pub metadata: BTreeMap<String, BTreeMap<String, String>>,
     /// Messages of known channels, in file order.
@@ -35,6 +39,38 @@ pub struct MissionLog {
     pub truncated: Option<String>,
 }
 
+impl Default for MissionLog {
+    fn default() -> Self {
+        Self {
+            log_format: OLDEST_LOG_FORMAT,
+            metadata: BTreeMap::new(),
+            messages: Vec::new(),
+            unknown: 0,
+            truncated: None,
+        }
+    }
+}
+
+/// The format version a [`LOG_METADATA`] record names, checked against the versions this build
+/// reads.
+fn format_of(pairs: &BTreeMap<String, String>, path: &Path) -> Result<u32, LogError> {
+    let Some(value) = pairs.get("log_format") else {
+        return Ok(OLDEST_LOG_FORMAT);
+    };
+    let found: u32 = value.trim().parse().map_err(|_| LogError::BadFormat {
+        path: path.to_owned(),
+        value: value.clone(),
+    })?;
+    if (OLDEST_LOG_FORMAT..=LOG_FORMAT).contains(&found) {
+        Ok(found)
+    } else {
+        Err(LogError::UnknownFormat {
+            path: path.to_owned(),
+            found,
+        })
+    }
+}
+
 impl MissionLog {
     /// Reads `path`. A file cut short (the recorder was killed) reads up to the cut, with
     /// [`MissionLog::truncated`] set; a file that is not MCAP at all is an error.
@@ -43,7 +79,8 @@ impl MissionLog {
         Self::from_bytes(&bytes, path)
     }
 
-    /// Reads a log held in memory (`path` names it in errors).
+    /// Reads a log held in memory (`path` names it in errors). A log in a format this build
+    /// does not read is an error naming the version, before any of its messages is taken.
     pub fn from_bytes(bytes: &[u8], path: &Path) -> Result<Self, LogError> {
         let mut log = MissionLog::default();
         let records = Records::new(bytes);
@@ -68,6 +105,9 @@ impl MissionLog {
                     topics.insert(c.id, Channel::from_topic(&c.topic));
                 }
                 mcap::records::Record::Metadata(m) => {
+                    if m.name == LOG_METADATA {
+                        log.log_format = format_of(&m.metadata, path)?;
+                    }
                     log.metadata.insert(m.name, m.metadata);
                 }
                 mcap::records::Record::Message { header, data } => {
@@ -442,6 +482,61 @@ mod tests {
         assert_eq!(log.messages[1].log_time, 2);
         assert_eq!(log.metadata["grop.mission"]["seed"], "1");
         assert!(log.truncated.is_none());
+        assert_eq!(log.log_format, LOG_FORMAT);
+        assert_eq!(log.metadata[LOG_METADATA]["log_format"], "2");
+    }
+
+    /// A log of a header and one metadata record `name` holding `pairs`.
+    fn log_with_metadata(name: &str, pairs: &[(&str, &str)]) -> Vec<u8> {
+        let mut map = Vec::new();
+        for (k, v) in pairs {
+            string(&mut map, k);
+            string(&mut map, v);
+        }
+        let mut body = Vec::new();
+        string(&mut body, name);
+        body.extend_from_slice(&(map.len() as u32).to_le_bytes());
+        body.extend(map);
+        let mut header = Vec::new();
+        string(&mut header, "");
+        string(&mut header, "test");
+        let mut file = b"\x89MCAP0\r\n".to_vec();
+        file.extend(record(0x01, &header));
+        file.extend(record(0x0C, &body));
+        file
+    }
+
+    #[test]
+    fn the_format_version_is_read_and_an_unknown_one_is_refused_by_number() {
+        // No format record: version 1 (every log before issue 23).
+        let v1 = log_with_metadata("grop.mission", &[("seed", "1")]);
+        let log = MissionLog::from_bytes(&v1, Path::new("v1.mcap")).unwrap();
+        assert_eq!(log.log_format, 1);
+        for known in ["1", "2"] {
+            let bytes = log_with_metadata(LOG_METADATA, &[("log_format", known)]);
+            let log = MissionLog::from_bytes(&bytes, Path::new("k.mcap")).unwrap();
+            assert_eq!(log.log_format.to_string(), known);
+        }
+        // A version from the future, and zero: refused, naming the version and the file.
+        for (found, shown) in [("3", "log_format 3"), ("0", "log_format 0")] {
+            let bytes = log_with_metadata(LOG_METADATA, &[("log_format", found)]);
+            match MissionLog::from_bytes(&bytes, Path::new("future.mcap")) {
+                Err(e @ LogError::UnknownFormat { .. }) => {
+                    let text = e.to_string();
+                    assert!(
+                        text.contains(shown) && text.contains("future.mcap"),
+                        "{text}"
+                    );
+                    assert!(text.contains("(1 to 2)"), "{text}");
+                }
+                other => panic!("log_format {found}: {other:?}"),
+            }
+        }
+        let bytes = log_with_metadata(LOG_METADATA, &[("log_format", "two")]);
+        match MissionLog::from_bytes(&bytes, Path::new("bad.mcap")) {
+            Err(e @ LogError::BadFormat { .. }) => assert!(e.to_string().contains("\"two\"")),
+            other => panic!("{other:?}"),
+        }
     }
 
     fn record(opcode: u8, body: &[u8]) -> Vec<u8> {

@@ -17,7 +17,6 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
-use anyhow::{Context, bail};
 use can_bus::{CanBus, CanFrame, RecvError, SendError};
 use grop_clock::{Clock, HostConfig, SimClock, SimClockHost};
 use grop_ipc::{ArmCall, ArmIoMsg, IpcNode, ProcessRole};
@@ -26,7 +25,7 @@ use ur5e_kin::Joints;
 use super::codec::{self, Channel};
 use super::reader::{LoggedMessage, MissionLog};
 use super::writer::{LogWriter, Overflow, WriterConfig};
-use super::{MISSION_METADATA, RECORDER_METADATA, Recorder, RecorderConfig};
+use super::{LogError, MISSION_METADATA, RECORDER_METADATA, Recorder, RecorderConfig};
 use crate::deployment::Deployment;
 use crate::executive::arm_io::{self, RecordingArm};
 use crate::executive::unload::{ArmFault, ArmPort, SkillStatus};
@@ -41,6 +40,68 @@ const EXECUTIVE_RANK: u32 = 20;
 const RECORDER_RANK: u32 = 90;
 /// The world's step (the live world steps every 2 ms).
 const STEP: Duration = Duration::from_millis(2);
+/// Stages of feeding a recorded input.
+const DECODE: &str = "decoding a logged input";
+const PUBLISH: &str = "publishing a logged input";
+
+/// Why a replay could not run. (A difference is not an error: it is in [`ReplayReport`].)
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum ReplayError {
+    /// Reading the log or writing the replay's log.
+    #[error(transparent)]
+    Log(#[from] LogError),
+    /// The log lacks what a replay needs.
+    #[error("{0}")]
+    NotReplayable(String),
+    /// The model file is not the one the mission ran with.
+    #[error(
+        "the model {} has changed since the mission (SHA-256 {actual}, the log says {expected}): pass --model with the mission's model",
+        path.display()
+    )]
+    ModelChanged {
+        /// The model file.
+        path: PathBuf,
+        /// Its SHA-256 now.
+        actual: String,
+        /// The SHA-256 the log names.
+        expected: String,
+    },
+    /// A step of setting up or running the replay failed; `stage` says which.
+    #[error("{stage}")]
+    Stage {
+        /// What was being done.
+        stage: String,
+        /// Why it failed.
+        source: Box<dyn std::error::Error + Send + Sync + 'static>,
+    },
+    /// The replayed nodes did not all join the simulated clock.
+    #[error("the replayed nodes did not start within a minute")]
+    NotStarted,
+    /// A replayed node's thread panicked.
+    #[error("the replayed {0} panicked")]
+    Panicked(&'static str),
+}
+
+impl ReplayError {
+    /// `error` while doing `stage`.
+    fn stage(
+        stage: impl Into<String>,
+        error: impl Into<Box<dyn std::error::Error + Send + Sync + 'static>>,
+    ) -> Self {
+        Self::Stage {
+            stage: stage.into(),
+            source: error.into(),
+        }
+    }
+}
+
+/// `.map_err(at("doing x"))`: an error while doing x.
+fn at<E: Into<Box<dyn std::error::Error + Send + Sync + 'static>>>(
+    stage: &'static str,
+) -> impl FnOnce(E) -> ReplayError {
+    move |e| ReplayError::stage(stage, e)
+}
 
 /// What a replay found.
 #[derive(Debug, Clone)]
@@ -243,33 +304,42 @@ fn deployment_of(
     dir: &Path,
     run: &str,
     model: Option<&Path>,
-) -> anyhow::Result<Deployment> {
-    let meta = log.metadata.get(MISSION_METADATA).with_context(|| {
-        format!("no `{MISSION_METADATA}` metadata: not a log written by grop-recorder")
+) -> Result<Deployment, ReplayError> {
+    let meta = log.metadata.get(MISSION_METADATA).ok_or_else(|| {
+        ReplayError::NotReplayable(format!(
+            "no `{MISSION_METADATA}` metadata: not a log written by grop-recorder"
+        ))
     })?;
     let field = |k: &str| {
-        meta.get(k)
-            .with_context(|| format!("the log's `{MISSION_METADATA}` metadata has no `{k}`"))
+        meta.get(k).ok_or_else(|| {
+            ReplayError::NotReplayable(format!(
+                "the log's `{MISSION_METADATA}` metadata has no `{k}`"
+            ))
+        })
+    };
+    let write = |path: &Path, text: &str| {
+        std::fs::write(path, text)
+            .map_err(|e| ReplayError::stage(format!("writing {}", path.display()), e))
     };
     let file_name = |k: &str, default: &str| {
         meta.get(k)
             .and_then(|p| Path::new(p).file_name().map(|n| n.to_owned()))
             .unwrap_or_else(|| default.into())
     };
-    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    std::fs::create_dir_all(dir)
+        .map_err(|e| ReplayError::stage(format!("creating {}", dir.display()), e))?;
     let deployment_path = dir.join("deployment.toml");
     let text = field("deployment")?;
-    std::fs::write(&deployment_path, text)
-        .with_context(|| format!("writing {}", deployment_path.display()))?;
+    write(&deployment_path, text)?;
     let map = dir.join(file_name("map_file", "map.toml"));
-    std::fs::write(&map, field("map")?).with_context(|| format!("writing {}", map.display()))?;
-    let mut d =
-        Deployment::from_toml_str(text, &deployment_path).context("the log's deployment file")?;
+    write(&map, field("map")?)?;
+    let mut d = Deployment::from_toml_str(text, &deployment_path)
+        .map_err(at("the log's deployment file"))?;
     d.map = map;
     d.robot = match meta.get("robot") {
         Some(robot) => {
             let path = dir.join(file_name("robot_file", "robot.toml"));
-            std::fs::write(&path, robot).with_context(|| format!("writing {}", path.display()))?;
+            write(&path, robot)?;
             Some(path)
         }
         None => None,
@@ -281,27 +351,27 @@ fn deployment_of(
     if let Some(expected) = meta.get("model_sha256").filter(|_| model.is_none()) {
         use sha2::Digest;
         let bytes = std::fs::read(&d.model)
-            .with_context(|| format!("the log's model {}", d.model.display()))?;
+            .map_err(|e| ReplayError::stage(format!("the log's model {}", d.model.display()), e))?;
         let actual: String = sha2::Sha256::digest(&bytes)
             .iter()
             .map(|b| format!("{b:02x}"))
             .collect();
         if &actual != expected {
-            bail!(
-                "the model {} has changed since the mission (SHA-256 {actual}, the log says \
-                 {expected}): pass --model with the mission's model",
-                d.model.display()
-            );
+            return Err(ReplayError::ModelChanged {
+                path: d.model.clone(),
+                actual,
+                expected: expected.clone(),
+            });
         }
     }
     d.namespace = run.to_owned();
     d.clock = format!("sim:{run}");
-    d.validate().context("the log's deployment")?;
+    d.validate().map_err(at("the log's deployment"))?;
     Ok(d)
 }
 
 /// Replays the log at `path` (see the module docs).
-pub fn replay(path: &Path, options: &ReplayOptions) -> anyhow::Result<ReplayReport> {
+pub fn replay(path: &Path, options: &ReplayOptions) -> Result<ReplayReport, ReplayError> {
     let log = MissionLog::read(path)?;
     let run = format!(
         "replay-{}-{}",
@@ -323,10 +393,12 @@ fn replay_in(
     options: &ReplayOptions,
     run: &str,
     dir: &Path,
-) -> anyhow::Result<ReplayReport> {
+) -> Result<ReplayReport, ReplayError> {
     let deployment = deployment_of(log, dir, run, options.model.as_deref())?;
-    let scene = deployment.load_scene().context("the log's map")?;
-    let robot = deployment.load_robot().context("the log's robot file")?;
+    let scene = deployment.load_scene().map_err(at("the log's map"))?;
+    let robot = deployment
+        .load_robot()
+        .map_err(at("the log's robot file"))?;
     let camera_period_s: f64 = log
         .metadata
         .get(RECORDER_METADATA)
@@ -345,13 +417,13 @@ fn replay_in(
     for m in &log.messages {
         match m.channel {
             Channel::Can => {
-                let f = codec::decode_can(&m.data).context("a logged CAN frame")?;
+                let f = codec::decode_can(&m.data).map_err(at("a logged CAN frame"))?;
                 if !HOST_IDS.contains(&f.id().raw()) {
                     tape.push((m.log_time, f));
                 }
             }
             Channel::ArmIo => {
-                arm_calls.push(codec::decode_arm_io(&m.data).context("a logged arm call")?)
+                arm_calls.push(codec::decode_arm_io(&m.data).map_err(at("a logged arm call"))?)
             }
             _ if is_world_input(m) => inputs.push(m),
             _ => {}
@@ -363,7 +435,7 @@ fn replay_in(
     let tape: Tape = Arc::new(tape);
 
     let mut host = SimClockHost::create(&deployment.clock[4..], HostConfig::default())
-        .context("creating the replay's clock")?;
+        .map_err(at("creating the replay's clock"))?;
     let clock_name = deployment.clock[4..].to_owned();
     let stop = AtomicBool::new(false);
     let mismatches = Arc::new(std::sync::atomic::AtomicU64::new(0));
@@ -379,31 +451,41 @@ fn replay_in(
             ..WriterConfig::default()
         },
     )?;
-    let feeder = IpcNode::new(&deployment.namespace, "replay-world").context("iceoryx2")?;
-    let frames = feeder.publisher::<grop_ipc::CameraFrameMsg>()?;
-    let poses = feeder.publisher::<grop_ipc::BasePoseMsg>()?;
-    let health = feeder.publisher::<grop_ipc::HeartbeatMsg>()?;
-    let events = feeder.publisher::<grop_ipc::EventMsg>()?;
+    let feeder = IpcNode::new(&deployment.namespace, "replay-world").map_err(at("iceoryx2"))?;
+    let publishers = "the replay's publishers";
+    let frames = feeder
+        .publisher::<grop_ipc::CameraFrameMsg>()
+        .map_err(at(publishers))?;
+    let poses = feeder
+        .publisher::<grop_ipc::BasePoseMsg>()
+        .map_err(at(publishers))?;
+    let health = feeder
+        .publisher::<grop_ipc::HeartbeatMsg>()
+        .map_err(at(publishers))?;
+    let events = feeder
+        .publisher::<grop_ipc::EventMsg>()
+        .map_err(at(publishers))?;
 
-    let join = |name: &str, rank: u32| -> anyhow::Result<Arc<dyn Clock>> {
+    let join = |name: &str, rank: u32| -> Result<Arc<dyn Clock>, ReplayError> {
         Ok(Arc::new(
             SimClock::join(&clock_name, name, rank, Duration::from_secs(10))
-                .with_context(|| format!("{name} joining the replay's clock"))?,
+                .map_err(|e| ReplayError::stage(format!("{name} joining the replay's clock"), e))?,
         ))
     };
     let participants = 3;
     // The executive's outgoing CAN frames, for the recorder's tap.
     let sent: Arc<Mutex<VecDeque<CanFrame>>> = Arc::new(Mutex::new(VecDeque::new()));
-    std::thread::scope(|s| -> anyhow::Result<ReplayReport> {
-        let planner = s.spawn(|| -> anyhow::Result<()> {
-            let mut node = PlannerNode::from_deployment(&deployment).context("the planner")?;
+    std::thread::scope(|s| -> Result<ReplayReport, ReplayError> {
+        let planner = s.spawn(|| -> Result<(), ReplayError> {
+            let mut node = PlannerNode::from_deployment(&deployment).map_err(at("the planner"))?;
             let clock = join("replay-planner", PLANNER_CLOCK_RANK)?;
-            node.run(clock.as_ref(), &stop).context("the planner")?;
+            node.run(clock.as_ref(), &stop).map_err(at("the planner"))?;
             Ok(())
         });
-        let executive = s.spawn(|| -> anyhow::Result<()> {
+        let executive = s.spawn(|| -> Result<(), ReplayError> {
             let clock = join("replay-executive", EXECUTIVE_RANK)?;
-            let node = IpcNode::new(&deployment.namespace, "replay-executive")?;
+            let node =
+                IpcNode::new(&deployment.namespace, "replay-executive").map_err(at("iceoryx2"))?;
             let bus = ReplayBus {
                 tape: Arc::clone(&tape),
                 next: 0,
@@ -415,7 +497,7 @@ fn replay_in(
                 next: 0,
                 mismatches: Arc::clone(&mismatches),
             };
-            let arm = RecordingArm::new(arm, &node)?;
+            let arm = RecordingArm::new(arm, &node).map_err(at("the arm's log port"))?;
             let mut exec = Executive::new(
                 ExecutiveConfig::for_robot(&robot),
                 Arc::clone(&clock),
@@ -425,13 +507,14 @@ fn replay_in(
                 scene.clone(),
                 scene.targets.len(),
             )
-            .context("the executive")?;
+            .map_err(at("the executive"))?;
             exec.run(&|| !stop.load(Ordering::Relaxed), false);
             Ok(())
         });
-        let recorder = s.spawn(|| -> anyhow::Result<()> {
+        let recorder = s.spawn(|| -> Result<(), ReplayError> {
             let clock = join("replay-recorder", RECORDER_RANK)?;
-            let node = IpcNode::new(&deployment.namespace, "replay-recorder")?;
+            let node =
+                IpcNode::new(&deployment.namespace, "replay-recorder").map_err(at("iceoryx2"))?;
             let tap = Tap {
                 tape: Arc::clone(&tape),
                 next: 0,
@@ -462,7 +545,7 @@ fn replay_in(
         while host.participants().len() < participants {
             if started.elapsed() > Duration::from_secs(60) {
                 stop.store(true, Ordering::Relaxed);
-                bail!("the replayed nodes did not start within a minute");
+                return Err(ReplayError::NotStarted);
             }
             if planner.is_finished() || executive.is_finished() || recorder.is_finished() {
                 break;
@@ -472,7 +555,7 @@ fn replay_in(
         host.settle();
         let mut next_input = 0;
         let mut t = Duration::ZERO;
-        let mut feed_error: Option<anyhow::Error> = None;
+        let mut feed_error: Option<ReplayError> = None;
         loop {
             let now = u64::try_from(t.as_nanos()).unwrap_or(u64::MAX);
             while let Some(m) = inputs.get(next_input).filter(|m| m.log_time <= now) {
@@ -484,18 +567,18 @@ fn replay_in(
                             result = codec::decode_camera_into(&m.data, f);
                         });
                         result
-                            .map_err(anyhow::Error::from)
-                            .and(p.map(|_| ()).map_err(Into::into))
+                            .map_err(at(DECODE))
+                            .and(p.map(|_| ()).map_err(at(PUBLISH)))
                     }
                     Channel::BasePose => codec::decode_base_pose(&m.data)
-                        .map_err(anyhow::Error::from)
-                        .and_then(|f| poses.publish(&f).map(|_| ()).map_err(Into::into)),
+                        .map_err(at(DECODE))
+                        .and_then(|f| poses.publish(&f).map(|_| ()).map_err(at(PUBLISH))),
                     Channel::Health => codec::decode_health(&m.data)
-                        .map_err(anyhow::Error::from)
-                        .and_then(|h| health.publish(&h).map(|_| ()).map_err(Into::into)),
+                        .map_err(at(DECODE))
+                        .and_then(|h| health.publish(&h).map(|_| ()).map_err(at(PUBLISH))),
                     Channel::Events => codec::decode_event(&m.data)
-                        .map_err(anyhow::Error::from)
-                        .and_then(|e| events.publish(&e).map(|_| ()).map_err(Into::into)),
+                        .map_err(at(DECODE))
+                        .and_then(|e| events.publish(&e).map(|_| ()).map_err(at(PUBLISH))),
                     _ => Ok(()),
                 };
                 if let Err(e) = published {
@@ -521,12 +604,12 @@ fn replay_in(
         for (name, r) in results {
             match r {
                 Ok(Ok(())) => {}
-                Ok(Err(e)) => return Err(e.context(format!("the replayed {name}"))),
-                Err(_) => bail!("the replayed {name} panicked"),
+                Ok(Err(e)) => return Err(ReplayError::stage(format!("the replayed {name}"), e)),
+                Err(_) => return Err(ReplayError::Panicked(name)),
             }
         }
         if let Some(e) = feed_error {
-            return Err(e.context("feeding the recorded inputs"));
+            return Err(ReplayError::stage("feeding the recorded inputs", e));
         }
         let replayed = MissionLog::read(&out)?;
         let behaviour = |m: &&LoggedMessage| !m.channel.topic().starts_with("/timing/");

@@ -94,8 +94,10 @@ pub struct LogWriter {
 }
 
 impl LogWriter {
-    /// Creates `path` (replacing a file there) and starts the writer thread; `metadata` is
-    /// written first, as MCAP metadata records (name -> key/value pairs).
+    /// Creates `path` (replacing a file there) and starts the writer thread. The format record
+    /// ([`LOG_METADATA`](super::LOG_METADATA): `log_format` [`LOG_FORMAT`](super::LOG_FORMAT)) is
+    /// written first, then `metadata`, as MCAP metadata records (name -> key/value pairs); a
+    /// record of `metadata` with the format record's name is replaced by this build's.
     pub fn create(
         path: &Path,
         metadata: BTreeMap<String, BTreeMap<String, String>>,
@@ -114,7 +116,19 @@ impl LogWriter {
         let mut writer = options
             .create(BufWriter::new(file))
             .map_err(|e| LogError::mcap(path, "writing the header", e))?;
-        for (name, pairs) in metadata {
+        let format = BTreeMap::from([
+            ("log_format".to_owned(), super::LOG_FORMAT.to_string()),
+            (
+                "writer".to_owned(),
+                concat!("grop ", env!("CARGO_PKG_VERSION")).to_owned(),
+            ),
+        ]);
+        let records = std::iter::once((super::LOG_METADATA.to_owned(), format)).chain(
+            metadata
+                .into_iter()
+                .filter(|(name, _)| name != super::LOG_METADATA),
+        );
+        for (name, pairs) in records {
             writer
                 .write_metadata(&mcap::records::Metadata {
                     name,

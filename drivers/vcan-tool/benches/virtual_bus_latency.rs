@@ -7,7 +7,8 @@
 //!   in another process (a command-to-reply cycle through the bus).
 //!
 //! criterion reports means and medians; p50/p99/max of every measured frame are printed at the
-//! end, as a bus latency table wants them. Run: `cargo bench -p can-bus`.
+//! end, as a bus latency table wants them. Run: `cargo bench -p vcan-tool` (here beside the `vcan`
+//! binary, which the two-process round trip spawns).
 
 use std::process::{Command, Stdio};
 use std::sync::mpsc;
