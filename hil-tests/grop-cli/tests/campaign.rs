@@ -246,15 +246,14 @@ fn datagen_in_three_shards_merges_into_the_dataset_of_one_run() {
             assert!(bytes == &b[name], "{} differs", name.display());
         }
     }
-    // Foreign: another trial count.
+    // Foreign: another configuration.
     let other = dir.path().join("other");
     ok(datagen(&[
         "--out",
         s(&other),
         "--shard",
         "1/3",
-        "--trials-per-cell",
-        "2",
+        "--no-trials-csv",
     ]));
     let target = dir.path().join("m2");
     let o = grop(&[
@@ -266,7 +265,10 @@ fn datagen_in_three_shards_merges_into_the_dataset_of_one_run() {
         s(&shards.join("shard-002-of-003")),
     ]);
     let t = text(&o);
-    assert!(!o.status.success() && t.contains("trials_per_cell"), "{t}");
+    assert!(
+        !o.status.success() && t.contains("configuration (options.no_trials_csv)"),
+        "{t}"
+    );
     assert!(!target.exists());
 }
 

@@ -521,8 +521,12 @@ where
     T: npyz::AutoSerialize,
     W: std::io::Write + std::io::Seek,
 {
+    // A fixed entry time (the zip format's epoch, 1980-01-01) instead of the time of writing:
+    // the same dataset gives the same bytes, whichever run or merge of shards wrote it.
+    let options =
+        npyz::zip::write::FileOptions::default().last_modified_time(npyz::zip::DateTime::default());
     let mut w = npz
-        .array::<T>(name, Default::default())?
+        .array::<T>(name, options)?
         .default_dtype()
         .shape(shape)
         .begin_nd()?;
