@@ -131,14 +131,24 @@ done
 sinfo --noheader --format='%P %a %D %t %N' | sed 's/^/   sinfo: /'
 sinfo --noheader --states=idle --format=%n | grep -qx "$host" || { echo "the node did not come up" >&2; exit 1; }
 
-stamp "submitting 4 shards of grop hil --tasks 8 as one array (sbatch --wait)"
+stamp "submitting 4 shards of grop hil --tasks 8 as one array"
 t0=$(date +%s.%N)
-sbatch --wait --quiet --array=0-3 --cpus-per-task=1 --mem=900M --time=00:10:00 \
+jid=$(sbatch --parsable --array=0-3 --cpus-per-task=1 --mem=900M --time=00:10:00 \
     --output="$work/campaign-logs/shard-%A_%a.out" \
     --export=ALL,GROP_JOB=hil,GROP_ARGS="--tasks 8 --jobs 1",CAMPAIGN_DIR="$work/campaign",GROP_BIN="$bin",GROP_WORKDIR="$root" \
-    hil-tests/campaigns/slurm/grop-shard.sbatch
+    hil-tests/campaigns/slurm/grop-shard.sbatch)
+# Until no task of the array is left (sbatch --wait polls at growing intervals, up to 32 s).
+for _ in $(seq 1200); do
+    [ -z "$(squeue --noheader --jobs="$jid" --format=%i 2>/dev/null)" ] && break
+    sleep 0.5
+done
 t1=$(date +%s.%N)
-ls "$work/campaign/hil"
+for m in "$work"/campaign/hil/shard-*/shard.json; do
+    printf '   %s: tasks %s, %.1f s wall\n' "$(basename "$(dirname "$m")")" \
+        "$(tr -d ' \n' <"$m" | grep -o '"task_ids":\[[0-9,]*\]' | cut -d: -f2)" \
+        "$(grep -o '"wall_s": [0-9.]*' "$m" | cut -d' ' -f2)"
+done
+[ "$(ls -d "$work"/campaign/hil/shard-* | wc -l)" = 4 ] || { echo "not all 4 shards finished" >&2; exit 1; }
 "$bin/grop" --log warn merge --out "$work/merged" "$work/campaign/hil" | tail -n 1
 
 stamp "the same 8 tasks unsharded in one process (--jobs $cpus)"

@@ -99,6 +99,7 @@ fn model_path(p: &std::path::Path) -> anyhow::Result<PathBuf> {
 
 /// Runs the comparison.
 pub fn run(args: Args) -> anyhow::Result<()> {
+    let run_started = Instant::now();
     let method = MethodKind::parse(&args.method)
         .with_context(|| format!("unknown --method {:?}", args.method))?;
     anyhow::ensure!(
@@ -248,7 +249,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             args.seed,
             shard_config(&args),
             total,
-            started,
+            run_started,
         );
         let dest = dir.commit(&manifest).context("writing the shard folder")?;
         println!(

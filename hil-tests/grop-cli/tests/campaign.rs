@@ -282,3 +282,132 @@ fn a_bad_shard_value_is_refused_with_its_text() {
     let o = grop(&["merge", "--out", "/nonexistent/x", "/nonexistent/shards"]);
     assert!(!o.status.success() && text(&o).contains("/nonexistent/shards"));
 }
+
+/// The closed-loop tests one at a time: soak counts this machine's iceoryx2 files and
+/// listening sockets before and after each mission.
+static CLOSED_LOOP: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
+/// tasks.csv without its wall-time column (`wall_s`, the 11th).
+fn without_wall(csv: &str) -> Vec<String> {
+    csv.lines()
+        .map(|l| {
+            let f: Vec<&str> = l.split(',').collect();
+            [&f[..10], &f[11..]].concat().join(",")
+        })
+        .collect()
+}
+
+#[test]
+fn hil_in_two_shards_merges_into_the_per_task_results_of_one_run() {
+    let _serial = CLOSED_LOOP.lock().unwrap_or_else(|e| e.into_inner());
+    let dir = tempfile::tempdir().unwrap();
+    let m = model();
+    let hil = |extra: &[&str]| {
+        let mut args = vec!["hil", "--model", &m, "--tasks", "3", "--jobs", "1"];
+        args.extend_from_slice(extra);
+        grop(&args)
+    };
+    let whole = dir.path().join("whole");
+    ok(hil(&["--out-dir", s(&whole)]));
+    let shards = dir.path().join("shards");
+    for i in 0..2 {
+        ok(hil(&[
+            "--out-dir",
+            s(&shards),
+            "--shard",
+            &format!("{i}/2"),
+            "--no-build",
+        ]));
+    }
+    let merged = dir.path().join("merged");
+    ok(grop(&["merge", "--out", s(&merged), s(&shards)]));
+    let a = std::fs::read_to_string(whole.join("tasks.csv")).unwrap();
+    let b = std::fs::read_to_string(merged.join("tasks.csv")).unwrap();
+    assert_eq!(a.lines().count(), 4, "{a}");
+    assert_eq!(without_wall(&a), without_wall(&b));
+    let paired = |p: &Path| {
+        let t = std::fs::read_to_string(p.join("summary.md")).unwrap();
+        t.lines()
+            .find(|l| l.starts_with("Paired difference"))
+            .unwrap()
+            .to_owned()
+    };
+    assert_eq!(paired(&whole), paired(&merged));
+    // Every mission's folder came along.
+    let tasks: Vec<String> = std::fs::read_dir(&merged)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n.starts_with("task-"))
+        .collect();
+    assert_eq!(tasks.len(), 3, "{tasks:?}");
+}
+
+#[test]
+fn soak_in_two_shards_adds_up_counts_and_judges_memory_per_shard() {
+    let _serial = CLOSED_LOOP.lock().unwrap_or_else(|e| e.into_inner());
+    let dir = tempfile::tempdir().unwrap();
+    let m = model();
+    let shards = dir.path().join("shards");
+    // The resource checks count this machine's iceoryx2 files and loopback listeners, which
+    // other programs running beside the test change too: a shard may fail them. It writes its
+    // folder either way, and the merge must carry its failed checks over.
+    let mut shard_failures = 0;
+    for i in 0..2 {
+        let o = grop(&[
+            "soak",
+            "--model",
+            &m,
+            "--missions",
+            "4",
+            "--scenes",
+            "2",
+            "--warm-up",
+            "1",
+            "--out-dir",
+            s(&shards),
+            "--shard",
+            &format!("{i}/2"),
+        ]);
+        let out = text(&o);
+        assert!(out.contains(&format!("shard {i}/2")), "{out}");
+        let failures =
+            std::fs::read_to_string(shards.join(format!("shard-00{i}-of-002/failures.txt")))
+                .unwrap()
+                .lines()
+                .count();
+        assert_eq!(o.status.success(), failures == 0, "{out}");
+        shard_failures += failures;
+    }
+    // Mission i ran in shard i mod 2: shard 1 had missions 1 and 3, both scene seed 1 + 1.
+    let rows = std::fs::read_to_string(shards.join("shard-001-of-002/rows.tsv")).unwrap();
+    let scenes: Vec<&str> = rows
+        .lines()
+        .skip(1)
+        .map(|l| l.split('\t').next().unwrap())
+        .collect();
+    assert_eq!(scenes, ["2", "2"]);
+    let merged = dir.path().join("merged");
+    let o = grop(&["merge", "--out", s(&merged), s(&shards)]);
+    assert_eq!(o.status.success(), shard_failures == 0, "{}", text(&o));
+    let md = std::fs::read_to_string(merged.join("soak.md")).unwrap();
+    assert!(
+        md.contains("# Soak: 4 closed-loop missions in 2 shards"),
+        "{md}"
+    );
+    // 4 missions run, none failed to run.
+    assert!(md.contains("\n| 4 | "), "{md}");
+    for shard in ["0/2", "1/2"] {
+        assert!(
+            md.contains(&format!("| {shard} | grop-world (peak")),
+            "{md}"
+        );
+    }
+    if shard_failures == 0 {
+        assert!(md.contains("All checks passed."), "{md}");
+    } else {
+        assert!(
+            md.contains(&format!("**{shard_failures} checks failed:**")),
+            "{md}"
+        );
+    }
+}
