@@ -208,7 +208,7 @@ fn config(args: &Args, robot: &world::RobotConfig) -> anyhow::Result<EvalConfig>
             Goals::Paper => BaselineGoals::Paper,
             Goals::Authors => BaselineGoals::AuthorsCode,
         },
-        plus: plus_config(&args),
+        plus: plus_config(args),
         ..cfg.planner
     };
     cfg.planner
