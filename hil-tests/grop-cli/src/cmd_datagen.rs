@@ -9,15 +9,25 @@
 use std::path::PathBuf;
 
 use anyhow::Context;
+use serde::{Deserialize, Serialize};
 use trial_sim::datagen::{DatagenConfig, SideSelection, generate};
+use trial_sim::shard::{Shard, ShardDir, ShardManifest};
 
 /// Arguments of `grop datagen`.
-#[derive(clap::Args, Debug)]
+#[derive(clap::Args, Debug, Serialize, Deserialize)]
 pub struct Args {
     /// Output folder, replaced as a whole when the run completes (it must be a dataset folder,
-    /// with a dataset.json, or empty, or not exist yet).
+    /// with a dataset.json, or empty, or not exist yet). With `--shard`: the campaign folder
+    /// that gets the shard's folder `shard-III-of-NNN`.
     #[arg(long, default_value = "out/dataset")]
+    #[serde(default)]
     pub out: PathBuf,
+    /// Run only shard I of N (0-based): array row k when k mod N == I. Writes the shard's tasks
+    /// exactly (`tasks.bin`) and its manifest into `<out>/shard-III-of-NNN`; `grop merge` makes
+    /// the dataset folder one run writes (docs/campaigns.md).
+    #[arg(long, value_name = "I/N")]
+    #[serde(default)]
+    pub shard: Option<Shard>,
     /// Seed of scenes and trials (same seed, same dataset, on any thread count).
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
@@ -41,11 +51,12 @@ pub struct Args {
     pub no_trials_csv: bool,
     /// Worker threads (default: all cores).
     #[arg(long)]
+    #[serde(default)]
     pub threads: Option<usize>,
 }
 
 /// `--sides` values.
-#[derive(clap::ValueEnum, Clone, Copy, Debug)]
+#[derive(clap::ValueEnum, Clone, Copy, Debug, Serialize, Deserialize)]
 pub enum SidesArg {
     /// Near side only.
     Near,
@@ -53,13 +64,9 @@ pub enum SidesArg {
     Both,
 }
 
-pub fn run(args: Args) -> anyhow::Result<()> {
-    let robot = match &args.robot {
-        Some(path) => world::RobotConfig::load(path)?,
-        None => world::RobotConfig::default(),
-    };
-    let staged = staging::StagedDir::prepare(&args.out)?;
-    let cfg = DatagenConfig {
+/// The run's configuration, files going to `out_dir`.
+fn config(args: &Args, robot: world::RobotConfig, out_dir: PathBuf) -> DatagenConfig {
+    DatagenConfig {
         seed: args.seed,
         n_envs: args.envs,
         targets_per_env: args.targets_per_env,
@@ -70,8 +77,15 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         },
         robot,
         robot_file: args.robot.clone(),
-        out_dir: staged.path().to_path_buf(),
+        out_dir,
         write_trials_csv: !args.no_trials_csv,
+    }
+}
+
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let robot = match &args.robot {
+        Some(path) => world::RobotConfig::load(path)?,
+        None => world::RobotConfig::default(),
     };
     if let Some(threads) = args.threads {
         // Only fails when a pool exists already; then that pool serves.
@@ -87,6 +101,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .context("progress bar template")?,
     );
     let started = std::time::Instant::now();
+    if let Some(shard) = args.shard {
+        return run_shard(&args, robot, shard, &bar, started);
+    }
+    let staged = staging::StagedDir::prepare(&args.out)?;
+    let cfg = config(&args, robot, staged.path().to_path_buf());
     let summary = generate(&cfg, &bar)
         .with_context(|| format!("generating the dataset into {}", staged.path().display()))?;
     staged.commit()?;
@@ -126,6 +145,99 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         summary.trials_per_s,
         total_s,
         args.out.display()
+    );
+    Ok(())
+}
+
+/// A shard's tasks' data, exactly (see [`trial_sim::datagen::write_shard_tasks`]).
+const SHARD_TASKS: &str = trial_sim::datagen::SHARD_TASKS_FILE;
+
+fn run_shard(
+    args: &Args,
+    robot: world::RobotConfig,
+    shard: Shard,
+    bar: &indicatif::ProgressBar,
+    started: std::time::Instant,
+) -> anyhow::Result<()> {
+    let dir = ShardDir::create(&args.out, shard)
+        .with_context(|| format!("creating the shard folder in {}", args.out.display()))?;
+    let cfg = config(args, robot, dir.path().to_path_buf());
+    let data = trial_sim::datagen::simulate_shard(&cfg, shard, bar, cfg.write_trials_csv)?;
+    trial_sim::datagen::write_shard_tasks(&data, &dir.path().join(SHARD_TASKS))?;
+    let total = cfg.tasks().1.len();
+    let manifest = crate::cmd_merge::manifest(
+        "datagen",
+        shard,
+        args.seed,
+        shard_config(args, &cfg.robot)?,
+        total,
+        started,
+    );
+    let dest = dir.commit(&manifest).context("writing the shard folder")?;
+    println!(
+        "shard {shard}: {} of {total} tasks, {} trials -> {} in {:.1} s",
+        data.tasks.len(),
+        data.summary.trials,
+        dest.display(),
+        started.elapsed().as_secs_f64()
+    );
+    Ok(())
+}
+
+/// The configuration a shard records: the options without the output folder, the shard and
+/// the thread count, and the robot as TOML.
+fn shard_config(args: &Args, robot: &world::RobotConfig) -> anyhow::Result<serde_json::Value> {
+    let mut opts = serde_json::to_value(args).context("recording the options")?;
+    if let Some(o) = opts.as_object_mut() {
+        for k in ["out", "shard", "threads"] {
+            o.remove(k);
+        }
+    }
+    Ok(serde_json::json!({
+        "options": opts,
+        "robot_toml": toml::to_string(robot).context("recording the robot")?,
+    }))
+}
+
+/// `grop merge` of datagen shards: the dataset folder one run writes (all files byte for byte,
+/// except the wall-clock fields `simulate_s` and `trials_per_s` of `dataset.json`, which differ
+/// between any two runs; here they are the shards' simulation seconds summed).
+pub fn merge(set: &[(PathBuf, ShardManifest)], out: &std::path::Path) -> anyhow::Result<()> {
+    let first = &set[0].1;
+    let args: Args = serde_json::from_value(first.config["options"].clone())
+        .context("the shards' recorded options")?;
+    let robot: world::RobotConfig = toml::from_str(
+        first.config["robot_toml"]
+            .as_str()
+            .context("the shards' manifest has no robot_toml")?,
+    )
+    .context("the shards' recorded robot")?;
+    let staged = trial_sim::shard::MergeDir::create(out)?;
+    let cfg = config(&args, robot, staged.path().to_path_buf());
+    let mut tasks = Vec::new();
+    let mut simulate_s = 0.0;
+    for (dir, m) in set {
+        let (s, part) = trial_sim::datagen::read_shard_tasks(&cfg, &dir.join(SHARD_TASKS))?;
+        let ids: Vec<usize> = part.iter().map(|t| t.task.index).collect();
+        anyhow::ensure!(
+            ids == m.task_ids,
+            "shard folder {}: its tasks file does not hold its {} tasks",
+            dir.display(),
+            m.task_ids.len()
+        );
+        simulate_s += s;
+        tasks.extend(part);
+    }
+    let dataset = trial_sim::datagen::merge_shards(&cfg, tasks, simulate_s)?;
+    trial_sim::datagen::write_dataset(&dataset, &cfg)?;
+    let dest = staged.commit()?;
+    println!(
+        "merged {} datagen shards ({} tasks, {} trials, success rate {:.3}) into {}",
+        set.len(),
+        dataset.summary.tasks,
+        dataset.summary.trials,
+        dataset.summary.success_rate,
+        dest.display()
     );
     Ok(())
 }

@@ -7,14 +7,16 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use anyhow::Context;
-use experiments::{EvalConfig, HeatmapSet, Summary, Workload};
+use experiments::{EvalConfig, HeatmapSet, Summary, TaskRecord, Workload};
 use planner::feasibility::FcnEvaluator;
 use planner::grop_plus::GropPlusConfig;
 use planner::methods::{BaselineGoals, MethodKind};
 use psi_eval::heuristics::{BinaryAnnulusEvaluator, BlurredAnnulusEvaluator, OracleEvaluator};
+use serde::{Deserialize, Serialize};
+use trial_sim::shard::{Shard, ShardDir, ShardManifest};
 
 /// Which feasibility evaluator `Psi` feeds the planners.
-#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub enum Evaluator {
     /// The trained FCN (`--model`).
     Fcn,
@@ -29,7 +31,7 @@ pub enum Evaluator {
 }
 
 /// How the plan's feasibility combines its pairs'.
-#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub enum Aggregation {
     /// Sum (the paper).
     Sum,
@@ -38,7 +40,7 @@ pub enum Aggregation {
 }
 
 /// Baselines' navigation goals.
-#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub enum Goals {
     /// Uniform among obstacle-free candidate cells (the paper).
     Paper,
@@ -47,7 +49,7 @@ pub enum Goals {
 }
 
 /// Which experiment `grop eval` runs.
-#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub enum Suite {
     /// The paper's: 3-object tasks in the 30 evaluation scenes, Fig. 5 and Table I.
     Paper,
@@ -57,18 +59,28 @@ pub enum Suite {
 }
 
 /// Arguments of `grop eval`.
-#[derive(clap::Args, Debug)]
+#[derive(clap::Args, Debug, Serialize, Deserialize)]
 pub struct Args {
-    /// Folder for eval_tasks.csv, summary.md and fig5.svg.
+    /// Folder for eval_tasks.csv, summary.md and fig5.svg (with `--shard`: the campaign folder
+    /// that gets the shard's folder `shard-III-of-NNN`).
     #[arg(long, default_value = "out/experiments")]
+    #[serde(default)]
     pub out_dir: PathBuf,
     /// Also copy the three files into docs/experiments, or into the folder given
     /// (`--write-docs docs/experiments/oracle`): regenerates the committed results.
     #[arg(long, num_args = 0..=1, default_missing_value = "docs/experiments", value_name = "DIR")]
+    #[serde(default)]
     pub write_docs: Option<PathBuf>,
     /// Ground-truth cache file (simulated once, reused while the settings match).
     #[arg(long, default_value = "target/grop-eval/ground-truth.json")]
+    #[serde(default)]
     pub cache: PathBuf,
+    /// Run only shard I of N (0-based) of the tasks: task k when k mod N == I. Writes the
+    /// shard's exact records and its manifest into `<out-dir>/shard-III-of-NNN`; `grop merge`
+    /// turns the N folders into what one run writes (docs/campaigns.md). Paper suite only.
+    #[arg(long, value_name = "I/N")]
+    #[serde(default)]
+    pub shard: Option<Shard>,
     /// Feasibility evaluator for the planners.
     #[arg(long, value_enum, default_value_t = Evaluator::Fcn)]
     pub evaluator: Evaluator,
@@ -156,13 +168,8 @@ pub struct Args {
     pub place_settings: Vec<usize>,
 }
 
-pub fn run(args: Args) -> anyhow::Result<()> {
-    let started = Instant::now();
-    let robot = match &args.robot {
-        Some(p) => world::RobotConfig::load(p)
-            .with_context(|| format!("loading robot file {}", p.display()))?,
-        None => world::RobotConfig::default(),
-    };
+/// The experiment's configuration from the options and the robot.
+fn config(args: &Args, robot: &world::RobotConfig) -> anyhow::Result<EvalConfig> {
     let methods = args
         .methods
         .iter()
@@ -201,14 +208,33 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             Goals::Paper => BaselineGoals::Paper,
             Goals::Authors => BaselineGoals::AuthorsCode,
         },
-        plus: plus_config(&args),
+        plus: plus_config(args),
         ..cfg.planner
     };
     cfg.planner
         .plus
         .check()
         .map_err(|e| anyhow::anyhow!("{e}"))?;
+    Ok(cfg)
+}
+
+fn load_robot(args: &Args) -> anyhow::Result<world::RobotConfig> {
+    Ok(match &args.robot {
+        Some(p) => world::RobotConfig::load(p)
+            .with_context(|| format!("loading robot file {}", p.display()))?,
+        None => world::RobotConfig::default(),
+    })
+}
+
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let started = Instant::now();
+    let robot = load_robot(&args)?;
+    let cfg = config(&args, &robot)?;
     if args.suite == Suite::FullSetting {
+        anyhow::ensure!(
+            args.shard.is_none(),
+            "--shard runs the paper suite only (not --suite full-setting)"
+        );
         return crate::cmd_eval_settings::run(&args, &robot, cfg.methods.clone(), cfg.planner);
     }
     cfg.check()?;
@@ -249,32 +275,35 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         args.evaluator,
         started.elapsed().as_secs_f64()
     );
+    if let Some(shard) = args.shard {
+        let records = experiments::run_shard(&cfg, &workload, &psi, &truth, shard)?;
+        let dir = ShardDir::create(&args.out_dir, shard)
+            .with_context(|| format!("creating the shard folder in {}", args.out_dir.display()))?;
+        experiments::write_records_exact(&dir.path().join(RECORDS_FILE), &records)?;
+        let manifest = crate::cmd_merge::manifest(
+            "eval",
+            shard,
+            args.seed,
+            shard_config(&args, &robot)?,
+            workload.tasks.len(),
+            started,
+        );
+        let dest = dir
+            .commit(&manifest)
+            .with_context(|| format!("writing the shard folder {}", dir_name(&args, shard)))?;
+        println!(
+            "shard {shard}: {} of {} tasks, {} records -> {} in {:.1} s",
+            manifest.task_ids.len(),
+            workload.tasks.len(),
+            records.len(),
+            dest.display(),
+            started.elapsed().as_secs_f64()
+        );
+        return Ok(());
+    }
     let records = experiments::run(&cfg, &workload, &psi, &truth)?;
-    let summary = Summary::from_records(&cfg, &records);
-
-    let csv = args.out_dir.join("eval_tasks.csv");
-    experiments::write_csv(&csv, &records)?;
-    let mut md = format!(
-        "<!-- written by `grop eval` ({} tasks, evaluator {:?}, seed {}, R {}, aggregation {:?}, goal draws {}{}, baseline goals {:?}) -->\n\n",
-        workload.tasks.len(),
-        args.evaluator,
-        args.seed,
-        cfg.planner.success_bonus_r,
-        args.aggregation,
-        args.goal_draws,
-        if args.paper_smp {
-            ", paper Smp (whole heatmap)"
-        } else {
-            ""
-        },
-        args.baseline_goals
-    );
-    md.push_str(&summary.markdown(&cfg));
-    let md_path = args.out_dir.join("summary.md");
-    experiments::write_file(&md_path, &md)?;
-    let svg = args.out_dir.join("fig5.svg");
-    experiments::plot::fig5_svg(&summary, &cfg.methods, &svg)?;
-    println!("{}", summary.markdown(&cfg));
+    let (csv, md_path, svg) =
+        write_results(&args, &cfg, workload.tasks.len(), &records, &args.out_dir)?;
     println!(
         "wrote {}, {}, {} in {:.1} s",
         csv.display(),
@@ -296,6 +325,116 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
         println!("wrote the results into {}", docs.display());
     }
+    Ok(())
+}
+
+/// A shard's records (exact numbers) inside its folder.
+const RECORDS_FILE: &str = "records.tsv";
+
+fn dir_name(args: &Args, shard: Shard) -> String {
+    args.out_dir.join(shard.folder_name()).display().to_string()
+}
+
+/// The configuration a shard records: the options without those that only say where files go
+/// or how fast, the robot as TOML and a digest of the model file.
+fn shard_config(args: &Args, robot: &world::RobotConfig) -> anyhow::Result<serde_json::Value> {
+    let mut opts = serde_json::to_value(args).context("recording the options")?;
+    if let Some(o) = opts.as_object_mut() {
+        for k in ["out_dir", "write_docs", "cache", "shard"] {
+            o.remove(k);
+        }
+    }
+    Ok(serde_json::json!({
+        "options": opts,
+        "robot_toml": toml::to_string(robot).context("recording the robot")?,
+        "model_sha256": if args.evaluator == Evaluator::Fcn {
+            trial_sim::shard::file_sha256(&args.model)
+        } else {
+            String::new()
+        },
+    }))
+}
+
+/// The results files of a run (`eval_tasks.csv`, `summary.md`, `fig5.svg`) into `dir`; the
+/// summary also on stdout.
+fn write_results(
+    args: &Args,
+    cfg: &EvalConfig,
+    n_tasks: usize,
+    records: &[TaskRecord],
+    dir: &std::path::Path,
+) -> anyhow::Result<(PathBuf, PathBuf, PathBuf)> {
+    let summary = Summary::from_records(cfg, records);
+    let csv = dir.join("eval_tasks.csv");
+    experiments::write_csv(&csv, records)?;
+    let mut md = format!(
+        "<!-- written by `grop eval` ({} tasks, evaluator {:?}, seed {}, R {}, aggregation {:?}, goal draws {}{}, baseline goals {:?}) -->\n\n",
+        n_tasks,
+        args.evaluator,
+        args.seed,
+        cfg.planner.success_bonus_r,
+        args.aggregation,
+        args.goal_draws,
+        if args.paper_smp {
+            ", paper Smp (whole heatmap)"
+        } else {
+            ""
+        },
+        args.baseline_goals
+    );
+    md.push_str(&summary.markdown(cfg));
+    let md_path = dir.join("summary.md");
+    experiments::write_file(&md_path, &md)?;
+    let svg = dir.join("fig5.svg");
+    experiments::plot::fig5_svg(&summary, &cfg.methods, &svg)?;
+    println!("{}", summary.markdown(cfg));
+    Ok((csv, md_path, svg))
+}
+
+/// `grop merge` of eval shards: the records of all shards in task order, then the very files
+/// one run writes.
+pub fn merge(set: &[(PathBuf, ShardManifest)], out: &std::path::Path) -> anyhow::Result<()> {
+    let first = &set[0].1;
+    let mut opts = first.config["options"].clone();
+    if let Some(o) = opts.as_object_mut() {
+        o.insert("out_dir".into(), serde_json::json!(out));
+    }
+    let args: Args = serde_json::from_value(opts).context("the shards' recorded options")?;
+    let robot: world::RobotConfig = toml::from_str(
+        first.config["robot_toml"]
+            .as_str()
+            .context("the shards' manifest has no robot_toml")?,
+    )
+    .context("the shards' recorded robot")?;
+    let cfg = config(&args, &robot)?;
+    let runs = cfg.runs().len();
+    let mut records: Vec<TaskRecord> = Vec::new();
+    for (dir, m) in set {
+        let part = experiments::read_records_exact(&dir.join(RECORDS_FILE))?;
+        let mut per_task = std::collections::BTreeMap::<usize, usize>::new();
+        for r in &part {
+            *per_task.entry(r.task).or_default() += 1;
+        }
+        let ids: Vec<usize> = per_task.keys().copied().collect();
+        anyhow::ensure!(
+            ids == m.task_ids && per_task.values().all(|&c| c == runs),
+            "shard folder {}: its records do not cover its {} tasks with {runs} runs each",
+            dir.display(),
+            m.task_ids.len()
+        );
+        records.extend(part);
+    }
+    // Stable: within a task the runs keep the order they were run in.
+    records.sort_by_key(|r| r.task);
+    let staged = trial_sim::shard::MergeDir::create(out)?;
+    write_results(&args, &cfg, first.total_tasks, &records, staged.path())?;
+    let dest = staged.commit()?;
+    println!(
+        "merged {} eval shards ({} tasks) into {}",
+        set.len(),
+        first.total_tasks,
+        dest.display()
+    );
     Ok(())
 }
 

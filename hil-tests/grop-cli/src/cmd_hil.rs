@@ -17,10 +17,12 @@ use planner::methods::{MethodKind, Planner, PlannerConfig, TaskMotionPlanner};
 use planner::problem::TaskProblem;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
+use serde::{Deserialize, Serialize};
+use trial_sim::shard::{Shard, ShardDir, ShardManifest};
 use world::generate::mix_seed;
 
 /// Arguments of `grop hil`.
-#[derive(clap::Args, Debug)]
+#[derive(clap::Args, Debug, Serialize, Deserialize)]
 pub struct Args {
     /// Tasks of the 420-task evaluation suite, spread evenly over its scenes.
     #[arg(long, default_value_t = 100)]
@@ -39,16 +41,29 @@ pub struct Args {
     pub model: PathBuf,
     /// Missions run side by side.
     #[arg(long, default_value_t = 2)]
+    #[serde(default)]
     pub jobs: usize,
-    /// Folder for per-task results (tasks.csv, summary.md, each mission's files).
+    /// Folder for per-task results (tasks.csv, summary.md, each mission's files). With
+    /// `--shard`: the campaign folder that gets the shard's folder `shard-III-of-NNN`.
     #[arg(long, default_value = "out/hil")]
+    #[serde(default)]
     pub out_dir: PathBuf,
     /// Also write the summary to docs/hil.md (regenerates the committed doc).
     #[arg(long)]
+    #[serde(default)]
     pub write_docs: bool,
-    /// Do not run `cargo build` for the world and the onboard binaries first.
+    /// Do not run `cargo build` for the world and the onboard binaries first (they must stand
+    /// beside this program, as after `cargo build --release -p grop-cli -p hil-world -p
+    /// grop-onboard`; what array jobs do, docs/campaigns.md).
     #[arg(long)]
+    #[serde(default)]
     pub no_build: bool,
+    /// Run only shard I of N (0-based) of the chosen tasks: the k-th chosen task when
+    /// k mod N == I. Writes the shard's exact rows, its missions' files and its manifest into
+    /// `<out-dir>/shard-III-of-NNN`; `grop merge` makes what one run writes (docs/campaigns.md).
+    #[arg(long, value_name = "I/N")]
+    #[serde(default)]
+    pub shard: Option<Shard>,
 }
 
 /// One task's results.
@@ -84,6 +99,7 @@ fn model_path(p: &std::path::Path) -> anyhow::Result<PathBuf> {
 
 /// Runs the comparison.
 pub fn run(args: Args) -> anyhow::Result<()> {
+    let run_started = Instant::now();
     let method = MethodKind::parse(&args.method)
         .with_context(|| format!("unknown --method {:?}", args.method))?;
     anyhow::ensure!(
@@ -98,10 +114,28 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let workload = Workload::build(&cfg);
     let n_all = workload.tasks.len();
     let n = args.tasks.min(n_all);
-    let chosen: Vec<usize> = (0..n).map(|k| k * n_all / n).collect();
+    let all_chosen: Vec<usize> = (0..n).map(|k| k * n_all / n).collect();
+    let shard = args.shard.unwrap_or(Shard::WHOLE);
+    let chosen: Vec<usize> = shard
+        .positions(n)
+        .into_iter()
+        .map(|k| all_chosen[k])
+        .collect();
+    let total = n;
+    let n = chosen.len();
     let bins = mission::binaries(!args.no_build)?;
-    std::fs::create_dir_all(&args.out_dir)
-        .with_context(|| format!("creating {}", args.out_dir.display()))?;
+    let shard_dir =
+        match args.shard {
+            Some(shard) => Some(ShardDir::create(&args.out_dir, shard).with_context(|| {
+                format!("creating the shard folder in {}", args.out_dir.display())
+            })?),
+            None => None,
+        };
+    let out_dir = match &shard_dir {
+        Some(d) => d.path().to_path_buf(),
+        None => args.out_dir.clone(),
+    };
+    std::fs::create_dir_all(&out_dir).with_context(|| format!("creating {}", out_dir.display()))?;
 
     // The calculation (what `grop eval` does for one method), task by task.
     let mut psi = FcnEvaluator::load(&model).context("loading Psi")?;
@@ -163,7 +197,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                     .collect();
                 scene.name = format!("task-{}", task.id);
                 let spec = MissionSpec {
-                    dir: args.out_dir.join(format!("task-{:03}", task.id)),
+                    dir: out_dir.join(format!("task-{:03}", task.id)),
                     scene,
                     robot: cfg.robot.clone(),
                     model: model.clone(),
@@ -205,8 +239,37 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     let mut rows = rows.into_inner().unwrap_or_else(|e| e.into_inner());
     rows.sort_by_key(|r| r.task);
+    if let (Some(dir), Some(shard)) = (shard_dir, args.shard) {
+        write_rows_exact(&dir.path().join(ROWS_FILE), &rows)?;
+        let failed: String = failures.iter().map(|f| format!("{f}\n")).collect();
+        std::fs::write(dir.path().join(FAILURES_FILE), failed).context("writing failures")?;
+        let manifest = crate::cmd_merge::manifest(
+            "hil",
+            shard,
+            args.seed,
+            shard_config(&args),
+            total,
+            run_started,
+        );
+        let dest = dir.commit(&manifest).context("writing the shard folder")?;
+        println!(
+            "shard {shard}: {} of {total} tasks ({} missions failed to run) -> {} in {:.1} s",
+            rows.len(),
+            failures.len(),
+            dest.display(),
+            wall.as_secs_f64()
+        );
+        return Ok(());
+    }
     anyhow::ensure!(!rows.is_empty(), "no mission finished");
-    let summary = summarize(&args, &rows, failures.len(), wall);
+    let wall_line = format!(
+        "Wall time: {:.1} s in all, {:.1} s per mission with {} side by side ({:.0}x faster than real time per mission).",
+        wall.as_secs_f64(),
+        mean_wall(&rows),
+        args.jobs,
+        mean_sim(&rows) / mean_wall(&rows).max(1e-9),
+    );
+    let summary = summarize(&args, &rows, failures.len(), &wall_line);
     println!("{summary}");
     write_csv(&args.out_dir.join("tasks.csv"), &rows)?;
     std::fs::write(args.out_dir.join("summary.md"), &summary)
@@ -217,6 +280,171 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             .with_context(|| format!("writing {}", doc.display()))?;
         println!("wrote {}", doc.display());
     }
+    Ok(())
+}
+
+fn mean_wall(rows: &[Row]) -> f64 {
+    rows.iter().map(|r| r.wall_s).sum::<f64>() / rows.len().max(1) as f64
+}
+
+fn mean_sim(rows: &[Row]) -> f64 {
+    rows.iter().map(|r| r.loop_time_s).sum::<f64>() / rows.len().max(1) as f64
+}
+
+/// A shard's rows (exact numbers) and the missions that failed to run, inside its folder.
+const ROWS_FILE: &str = "rows.tsv";
+const FAILURES_FILE: &str = "failures.txt";
+const ROWS_HEADER: &str = "grop-hil-rows-1\ttask\tscene\tchairs\tcalc_placed\tcalc_time_s\tcalc_steps\tloop_steps\tloop_placed\tloop_placed_strict\tloop_time_s\tloop_end\tloop_contacts\twall_s\tlegs";
+
+/// The configuration a shard records: the options that change results, and the model's digest.
+fn shard_config(args: &Args) -> serde_json::Value {
+    serde_json::json!({
+        "tasks": args.tasks,
+        "seed": args.seed,
+        "method": args.method,
+        "paper_smp": args.paper_smp,
+        "model": args.model,
+        "model_sha256": trial_sim::shard::file_sha256(&args.model),
+    })
+}
+
+fn write_rows_exact(path: &std::path::Path, rows: &[Row]) -> anyhow::Result<()> {
+    use std::fmt::Write as _;
+    let mut s = format!("{ROWS_HEADER}\n");
+    for r in rows {
+        let legs: Vec<String> = r
+            .legs
+            .iter()
+            .map(|l| format!("{:?},{:?}", l[0], l[1]))
+            .collect();
+        let _ = writeln!(
+            s,
+            "\t{}\t{}\t{}\t{}\t{:?}\t{}\t{}\t{}\t{}\t{:?}\t{}\t{}\t{:?}\t{}",
+            r.task,
+            r.scene,
+            r.chairs,
+            r.calc_placed,
+            r.calc_time_s,
+            r.calc_steps,
+            r.loop_steps,
+            r.loop_placed,
+            r.loop_placed_strict,
+            r.loop_time_s,
+            serde_json::to_string(&r.loop_end)?.trim_matches('"'),
+            r.loop_collisions,
+            r.wall_s,
+            legs.join(";")
+        );
+    }
+    std::fs::write(path, s).with_context(|| format!("writing {}", path.display()))
+}
+
+fn read_rows_exact(path: &std::path::Path) -> anyhow::Result<Vec<Row>> {
+    let text =
+        std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+    let mut lines = text.lines();
+    anyhow::ensure!(
+        lines.next() == Some(ROWS_HEADER),
+        "{}: not a grop hil rows file (header)",
+        path.display()
+    );
+    fn num<T: std::str::FromStr>(s: &str, what: &str) -> anyhow::Result<T> {
+        s.parse()
+            .map_err(|_| anyhow::anyhow!("{what} {s:?} is not a number"))
+    }
+    lines
+        .enumerate()
+        .map(|(i, line)| {
+            let f: Vec<&str> = line.split('\t').collect();
+            (|| -> anyhow::Result<Row> {
+                anyhow::ensure!(f.len() == 15, "{} fields, expected 15", f.len());
+                let legs = f[14]
+                    .split(';')
+                    .filter(|l| !l.is_empty())
+                    .map(|l| {
+                        let (a, b) = l.split_once(',').context("a leg is not x,y")?;
+                        Ok([num(a, "leg")?, num(b, "leg")?])
+                    })
+                    .collect::<anyhow::Result<Vec<[f64; 2]>>>()?;
+                Ok(Row {
+                    task: num(f[1], "task")?,
+                    scene: num(f[2], "scene")?,
+                    chairs: num(f[3], "chairs")?,
+                    calc_placed: num(f[4], "calc_placed")?,
+                    calc_time_s: num(f[5], "calc_time_s")?,
+                    calc_steps: f[6].to_owned(),
+                    loop_steps: f[7].to_owned(),
+                    loop_placed: num(f[8], "loop_placed")?,
+                    loop_placed_strict: num(f[9], "loop_placed_strict")?,
+                    loop_time_s: num(f[10], "loop_time_s")?,
+                    loop_end: serde_json::from_str(&format!("\"{}\"", f[11]))
+                        .with_context(|| format!("mission end {:?}", f[11]))?,
+                    loop_collisions: num(f[12], "loop_contacts")?,
+                    wall_s: num(f[13], "wall_s")?,
+                    legs,
+                })
+            })()
+            .with_context(|| format!("{} line {}", path.display(), i + 2))
+        })
+        .collect()
+}
+
+/// `grop merge` of hil shards: per-task rows in task order (tasks.csv as one run writes it,
+/// wall-time column aside), the paired statistics over all tasks (summary.md), and every
+/// mission's files.
+pub fn merge(set: &[(PathBuf, ShardManifest)], out: &std::path::Path) -> anyhow::Result<()> {
+    let first = &set[0].1;
+    let c = &first.config;
+    let args = Args {
+        tasks: c["tasks"].as_u64().context("manifest: tasks")? as usize,
+        seed: first.seed,
+        method: c["method"].as_str().context("manifest: method")?.to_owned(),
+        paper_smp: c["paper_smp"].as_bool().context("manifest: paper_smp")?,
+        model: serde_json::from_value(c["model"].clone()).context("manifest: model")?,
+        jobs: 0,
+        out_dir: out.to_path_buf(),
+        write_docs: false,
+        no_build: true,
+        shard: None,
+    };
+    let staged = trial_sim::shard::MergeDir::create(out)?;
+    let mut rows = Vec::new();
+    let mut failures = 0;
+    let mut shard_walls = Vec::new();
+    for (dir, m) in set {
+        let part = read_rows_exact(&dir.join(ROWS_FILE))?;
+        let failed = std::fs::read_to_string(dir.join(FAILURES_FILE))
+            .with_context(|| format!("reading {}", dir.join(FAILURES_FILE).display()))?;
+        failures += failed.lines().filter(|l| !l.is_empty()).count();
+        for r in &part {
+            let task_dir = format!("task-{:03}", r.task);
+            crate::cmd_merge::copy_tree(&dir.join(&task_dir), &staged.path().join(&task_dir))?;
+        }
+        shard_walls.push(m.wall_s);
+        rows.extend(part);
+    }
+    rows.sort_by_key(|r| r.task);
+    anyhow::ensure!(!rows.is_empty(), "no mission finished in any shard");
+    let longest = shard_walls.iter().copied().fold(0.0, f64::max);
+    let wall_line = format!(
+        "Wall time: {} shards, the longest {:.1} s, all together {:.1} s; {:.1} s per mission ({:.0}x faster than real time per mission).",
+        set.len(),
+        longest,
+        shard_walls.iter().sum::<f64>(),
+        mean_wall(&rows),
+        mean_sim(&rows) / mean_wall(&rows).max(1e-9),
+    );
+    let summary = summarize(&args, &rows, failures, &wall_line);
+    write_csv(&staged.path().join("tasks.csv"), &rows)?;
+    std::fs::write(staged.path().join("summary.md"), &summary).context("writing summary.md")?;
+    let dest = staged.commit()?;
+    println!("{summary}");
+    println!(
+        "merged {} hil shards ({} tasks) into {}",
+        set.len(),
+        rows.len(),
+        dest.display()
+    );
     Ok(())
 }
 
@@ -304,7 +532,7 @@ with furniture anywhere on the way to a goal as a failure: the calculation does 
 the way there, the closed loop does, and a base that drives its estimate (off by the leg's \
 localisation bias) between chairs touches them often.\n";
 
-fn summarize(args: &Args, rows: &[Row], failed: usize, wall: Duration) -> String {
+fn summarize(args: &Args, rows: &[Row], failed: usize, wall_line: &str) -> String {
     let objects = 3.0;
     let calc: Vec<f64> = rows
         .iter()
@@ -334,7 +562,6 @@ fn summarize(args: &Args, rows: &[Row], failed: usize, wall: Duration) -> String
         .sqrt();
     let ends = |e: MissionEnd| rows.iter().filter(|r| r.loop_end == e).count();
     let mean = |f: &dyn Fn(&Row) -> f64| rows.iter().map(f).sum::<f64>() / rows.len() as f64;
-    let wall_per = mean(&|r| r.wall_s);
     format!(
         "\n## {} tasks, method {}{} ({} missions failed to run)\n\n\
 | | completion (placed / 3) | mean task time |\n|---|---|---|\n\
@@ -346,7 +573,7 @@ Paired difference, closed loop minus calculation: **{md:+.3} +- {sd:.3}** (stand
 - Missions: {} finished, {} aborted, {} timed out; {} contacts with furniture in all.\n\
 - Realised minus commanded stop over {} legs: mean {ml_err:+.3} m, sd {leg_sd:.3} m per axis \
 (the robot file's sigma: 0.1 m).\n\
-- Wall time: {:.1} s in all, {:.1} s per mission with {} side by side ({:.0}x faster than real time per mission).\n",
+- {wall_line}\n",
         rows.len(),
         args.method,
         if args.paper_smp { " (paper Smp)" } else { "" },
@@ -363,10 +590,6 @@ Paired difference, closed loop minus calculation: **{md:+.3} +- {sd:.3}** (stand
         ends(MissionEnd::TimedOut),
         rows.iter().map(|r| r.loop_collisions).sum::<usize>(),
         legs.len() / 2,
-        wall.as_secs_f64(),
-        wall_per,
-        args.jobs,
-        mean(&|r| r.loop_time_s) / wall_per.max(1e-9),
     )
 }
 

@@ -2,7 +2,8 @@
 //!
 //! Every job is a subcommand in its own module (`cmd_*.rs`), each with `--help` and defaults:
 //! `grop demo`, `grop datagen`, `grop render`, `grop model-eval`, `grop eval` (`--suite
-//! full-setting` for whole table settings), `grop bench`, `grop bench-settings`, `grop hil`.
+//! full-setting` for whole table settings), `grop bench`, `grop bench-settings`, `grop hil`,
+//! `grop soak`, `grop merge` (shards of a campaign, docs/campaigns.md).
 
 use clap::{Parser, Subcommand};
 
@@ -15,6 +16,7 @@ mod cmd_eval;
 mod cmd_eval_settings;
 mod cmd_hil;
 mod cmd_latency;
+mod cmd_merge;
 mod cmd_model_eval;
 mod cmd_render;
 mod cmd_replay;
@@ -62,6 +64,9 @@ enum Command {
     /// memory, socket or file descriptor may be left behind -> out/soak.md (`--write-docs`:
     /// docs/soak.md).
     Soak(cmd_soak::Args),
+    /// Merge the shard folders of a campaign (`--shard I/N` runs of eval, hil, soak or datagen)
+    /// into what one unsharded run writes (docs/campaigns.md).
+    Merge(cmd_merge::Args),
 }
 
 fn main() -> std::process::ExitCode {
@@ -79,6 +84,7 @@ fn main() -> std::process::ExitCode {
         Command::Replay(a) => cmd_replay::run(a),
         Command::Latency(a) => cmd_latency::run(a),
         Command::Soak(a) => cmd_soak::run(a),
+        Command::Merge(a) => cmd_merge::run(a),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

@@ -22,6 +22,7 @@ use world::view::{
 };
 use world::{RobotConfig, Scene, SceneError};
 
+use crate::shard::Shard;
 use crate::trial::{CellCounts, HeatmapArea, TrialResult, TrialSimulator, simulate_cells};
 
 /// Version of the output folder's format (`dataset.json` field `format_version`).
@@ -292,8 +293,20 @@ pub fn simulate(
     progress: &dyn Progress,
     keep_records: bool,
 ) -> Result<Dataset, DatagenError> {
+    simulate_shard(cfg, Shard::WHOLE, progress, keep_records)
+}
+
+/// [`simulate`] for one shard of the tasks: task `k` (array row) belongs to shard `k mod N`.
+/// The tasks' data are exactly those of the whole run's rows; the summary is the shard's.
+pub fn simulate_shard(
+    cfg: &DatagenConfig,
+    shard: Shard,
+    progress: &dyn Progress,
+    keep_records: bool,
+) -> Result<Dataset, DatagenError> {
     cfg.validate()?;
-    let (scenes, tasks) = cfg.tasks();
+    let (scenes, mut tasks) = cfg.tasks();
+    tasks.retain(|t| shard.contains(t.index));
     progress.begin(tasks.len() as u64);
     let started = Instant::now();
     let data: Vec<TaskData> = tasks
@@ -508,8 +521,12 @@ where
     T: npyz::AutoSerialize,
     W: std::io::Write + std::io::Seek,
 {
+    // A fixed entry time (the zip format's epoch, 1980-01-01) instead of the time of writing:
+    // the same dataset gives the same bytes, whichever run or merge of shards wrote it.
+    let options =
+        npyz::zip::write::FileOptions::default().last_modified_time(npyz::zip::DateTime::default());
     let mut w = npz
-        .array::<T>(name, Default::default())?
+        .array::<T>(name, options)?
         .default_dtype()
         .shape(shape)
         .begin_nd()?;
@@ -683,4 +700,201 @@ pub fn set_worker_threads(threads: usize) -> Result<(), String> {
         .num_threads(threads.max(1))
         .build_global()
         .map_err(|e| e.to_string())
+}
+
+/// The file of a datagen shard holding its tasks' data (see [`write_shard_tasks`]).
+pub const SHARD_TASKS_FILE: &str = "tasks.bin";
+const SHARD_MAGIC: &[u8; 8] = b"GROPDGS1";
+
+/// Writes a shard's simulated tasks, exactly (little-endian binary: magic `GROPDGS1`, the
+/// simulation's wall seconds as f64 bits, the task count, then per task its row index, crop,
+/// successes and trials per cell and its trial records with f64 bits).
+pub fn write_shard_tasks(dataset: &Dataset, path: &Path) -> Result<(), DatagenError> {
+    let write = || -> std::io::Result<()> {
+        let mut w = BufWriter::with_capacity(1 << 20, File::create(path)?);
+        w.write_all(SHARD_MAGIC)?;
+        w.write_all(&dataset.summary.simulate_s.to_bits().to_le_bytes())?;
+        w.write_all(&(dataset.tasks.len() as u64).to_le_bytes())?;
+        for t in &dataset.tasks {
+            w.write_all(&(t.task.index as u64).to_le_bytes())?;
+            w.write_all(&t.crop)?;
+            for v in t.counts.successes.iter().chain(&t.counts.trials) {
+                w.write_all(&v.to_le_bytes())?;
+            }
+            w.write_all(&(t.records.len() as u64).to_le_bytes())?;
+            for r in &t.records {
+                w.write_all(&r.task.to_le_bytes())?;
+                w.write_all(&[r.row, r.col])?;
+                w.write_all(&r.trial.to_le_bytes())?;
+                for x in [
+                    r.commanded_xy.0,
+                    r.commanded_xy.1,
+                    r.realised_xy.0,
+                    r.realised_xy.1,
+                ] {
+                    w.write_all(&x.to_bits().to_le_bytes())?;
+                }
+                w.write_all(&[r.result.index() as u8])?;
+            }
+        }
+        w.flush()
+    };
+    write().map_err(io_err(path))
+}
+
+/// A shard file that cannot be read back.
+#[derive(Debug, thiserror::Error)]
+#[error("datagen shard file {path}: {reason}")]
+pub struct ShardFileError {
+    /// The file.
+    pub path: PathBuf,
+    /// What is wrong.
+    pub reason: String,
+}
+
+/// Reads what [`write_shard_tasks`] wrote: the simulation's wall seconds and the tasks' data
+/// (the [`Task`] fields other than the row index are filled in from `cfg`, which must be the
+/// configuration the shard ran with).
+pub fn read_shard_tasks(
+    cfg: &DatagenConfig,
+    path: &Path,
+) -> Result<(f64, Vec<TaskData>), ShardFileError> {
+    let err = |reason: String| ShardFileError {
+        path: path.to_path_buf(),
+        reason,
+    };
+    let bytes = std::fs::read(path).map_err(|e| err(e.to_string()))?;
+    let mut r = Reader {
+        bytes: &bytes,
+        at: 0,
+    };
+    let truncated = |what: &str| err(format!("truncated ({what})"));
+    if r.take(8).ok_or_else(|| truncated("magic"))? != SHARD_MAGIC {
+        return Err(err("not a datagen shard file (bad magic)".into()));
+    }
+    let simulate_s = f64::from_bits(r.u64().ok_or_else(|| truncated("header"))?);
+    let n = r.u64().ok_or_else(|| truncated("header"))? as usize;
+    let (_, all_tasks) = cfg.tasks();
+    let mut out = Vec::with_capacity(n.min(all_tasks.len()));
+    for _ in 0..n {
+        let index = r.u64().ok_or_else(|| truncated("task"))? as usize;
+        let task = *all_tasks.get(index).ok_or_else(|| {
+            err(format!(
+                "task row {index}, the configuration has {} tasks",
+                all_tasks.len()
+            ))
+        })?;
+        let crop: [u8; CROP_CELLS] = r
+            .take(CROP_CELLS)
+            .and_then(|c| c.try_into().ok())
+            .ok_or_else(|| truncated("crop"))?;
+        let mut cells = Vec::with_capacity(2 * CROP_CELLS);
+        for _ in 0..2 * CROP_CELLS {
+            cells.push(r.u16().ok_or_else(|| truncated("cells"))?);
+        }
+        let trials = cells.split_off(CROP_CELLS);
+        let m = r.u64().ok_or_else(|| truncated("records"))? as usize;
+        let mut records = Vec::with_capacity(m.min(1 << 20));
+        for _ in 0..m {
+            let rec = (|| {
+                let task = r.u32()?;
+                let rc = r.take(2)?;
+                let (row, col) = (rc[0], rc[1]);
+                let trial = r.u16()?;
+                let mut x = [0.0; 4];
+                for v in &mut x {
+                    *v = f64::from_bits(r.u64()?);
+                }
+                let result = *TrialResult::ALL.get(usize::from(r.take(1)?[0]))?;
+                Some(TrialRecord {
+                    task,
+                    row,
+                    col,
+                    trial,
+                    commanded_xy: (x[0], x[1]),
+                    realised_xy: (x[2], x[3]),
+                    result,
+                })
+            })()
+            .ok_or_else(|| truncated("trial record"))?;
+            records.push(rec);
+        }
+        out.push(TaskData {
+            task,
+            crop,
+            counts: CellCounts {
+                successes: cells,
+                trials,
+            },
+            records,
+        });
+    }
+    if r.at != bytes.len() {
+        return Err(err(format!(
+            "{} bytes after the last task",
+            bytes.len() - r.at
+        )));
+    }
+    Ok((simulate_s, out))
+}
+
+struct Reader<'a> {
+    bytes: &'a [u8],
+    at: usize,
+}
+
+impl<'a> Reader<'a> {
+    fn take(&mut self, n: usize) -> Option<&'a [u8]> {
+        let s = self.bytes.get(self.at..self.at.checked_add(n)?)?;
+        self.at += n;
+        Some(s)
+    }
+    fn u64(&mut self) -> Option<u64> {
+        Some(u64::from_le_bytes(self.take(8)?.try_into().ok()?))
+    }
+    fn u32(&mut self) -> Option<u32> {
+        Some(u32::from_le_bytes(self.take(4)?.try_into().ok()?))
+    }
+    fn u16(&mut self) -> Option<u16> {
+        Some(u16::from_le_bytes(self.take(2)?.try_into().ok()?))
+    }
+}
+
+/// The whole dataset from its shards' tasks (any order): every row of `cfg`'s task list
+/// exactly once. `simulate_s` (wall seconds, outside the determinism contract) goes into the
+/// summary as given.
+pub fn merge_shards(
+    cfg: &DatagenConfig,
+    tasks: Vec<TaskData>,
+    simulate_s: f64,
+) -> Result<Dataset, DatagenError> {
+    cfg.validate()?;
+    let (scenes, all) = cfg.tasks();
+    let mut slots: Vec<Option<TaskData>> = vec![None; all.len()];
+    for t in tasks {
+        let i = t.task.index;
+        let n = slots.len();
+        let slot = slots.get_mut(i).ok_or_else(|| {
+            DatagenError::InvalidConfig(format!("task row {i} beyond the {n} tasks"))
+        })?;
+        if slot.is_some() {
+            return Err(DatagenError::InvalidConfig(format!(
+                "task row {i} is in two shards"
+            )));
+        }
+        *slot = Some(t);
+    }
+    let data = slots
+        .into_iter()
+        .enumerate()
+        .map(|(i, t)| {
+            t.ok_or_else(|| DatagenError::InvalidConfig(format!("task row {i} is in no shard")))
+        })
+        .collect::<Result<Vec<_>, _>>()?;
+    let summary = summarise(&data, cfg.trials_per_cell, simulate_s);
+    Ok(Dataset {
+        scenes,
+        tasks: data,
+        summary,
+    })
 }

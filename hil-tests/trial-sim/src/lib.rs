@@ -19,6 +19,7 @@
 
 pub mod datagen;
 pub mod retry;
+pub mod shard;
 pub mod trial;
 
 pub use trial::{

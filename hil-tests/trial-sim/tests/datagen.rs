@@ -156,3 +156,52 @@ fn bad_settings_are_rejected() {
     let err = simulate(&bad_robot, &NoProgress, false).expect_err("NaN speed");
     assert!(err.to_string().contains("speed_mps"), "{err}");
 }
+
+#[test]
+fn shards_through_their_files_merge_into_the_whole_dataset() {
+    use trial_sim::datagen::{merge_shards, read_shard_tasks, simulate_shard, write_shard_tasks};
+    use trial_sim::shard::Shard;
+    let dir = tempfile::tempdir().expect("tempdir");
+    let cfg = DatagenConfig {
+        n_envs: 1,
+        targets_per_env: 5,
+        trials_per_cell: 2,
+        ..small(dir.path())
+    };
+    let whole = simulate(&cfg, &NoProgress, true).expect("simulates");
+    let mut parts = Vec::new();
+    for index in 0..3 {
+        let shard = Shard { index, count: 3 };
+        let d = simulate_shard(&cfg, shard, &NoProgress, true).expect("simulates");
+        assert_eq!(
+            d.tasks.iter().map(|t| t.task.index).collect::<Vec<_>>(),
+            shard.positions(5)
+        );
+        let file = dir.path().join(format!("shard-{index}.bin"));
+        write_shard_tasks(&d, &file).expect("writes");
+        let (_, tasks) = read_shard_tasks(&cfg, &file).expect("reads back");
+        parts.extend(tasks);
+    }
+    parts.reverse();
+    let merged = merge_shards(&cfg, parts.clone(), 0.0).expect("merges");
+    assert_eq!(merged.tasks.len(), whole.tasks.len());
+    for (a, b) in merged.tasks.iter().zip(&whole.tasks) {
+        assert_eq!(a.task, b.task);
+        assert_eq!(a.crop, b.crop);
+        assert_eq!(a.counts.successes, b.counts.successes);
+        assert_eq!(a.counts.trials, b.counts.trials);
+        assert_eq!(a.records, b.records);
+    }
+    let wall_free = |s: &trial_sim::datagen::DatasetSummary| trial_sim::datagen::DatasetSummary {
+        simulate_s: 0.0,
+        trials_per_s: 0.0,
+        ..s.clone()
+    };
+    assert_eq!(wall_free(&merged.summary), wall_free(&whole.summary));
+    // A task twice or one missing is refused.
+    let mut twice = parts.clone();
+    twice.push(parts[0].clone());
+    assert!(merge_shards(&cfg, twice, 0.0).is_err());
+    parts.pop();
+    assert!(merge_shards(&cfg, parts, 0.0).is_err());
+}
