@@ -52,8 +52,53 @@ pub(crate) fn load<T: DeserializeOwned>(
     validate: impl FnOnce(&T) -> Result<(), InvalidField>,
 ) -> Result<T, FileFailure> {
     let encoding = encoding_of(path).ok_or(FileFailure::UnknownExtension)?;
-    let text = std::fs::read_to_string(path).map_err(FileFailure::Read)?;
+    let text = read_capped(path)?;
     parse(&text, encoding, supported, validate)
+}
+
+/// Most bytes a scene or robot file may have (the largest generated scene is a few kB): a
+/// bigger file, or a special file that never ends, is refused before it fills the memory.
+pub const MAX_WORLD_FILE_BYTES: u64 = 4 << 20;
+
+/// Reads at most [`MAX_WORLD_FILE_BYTES`] (+1 to tell that there is more) as UTF-8.
+fn read_capped(path: &Path) -> Result<String, FileFailure> {
+    use std::io::Read;
+    let file = std::fs::File::open(path).map_err(FileFailure::Read)?;
+    let mut text = String::new();
+    file.take(MAX_WORLD_FILE_BYTES + 1)
+        .read_to_string(&mut text)
+        .map_err(FileFailure::Read)?;
+    if text.len() as u64 > MAX_WORLD_FILE_BYTES {
+        return Err(FileFailure::Parse(format!(
+            "larger than the {MAX_WORLD_FILE_BYTES} bytes a world file may have"
+        )));
+    }
+    Ok(text)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_file_past_the_cap_is_refused_before_it_is_parsed() {
+        let dir = tempfile::tempdir().expect("temp dir");
+        let path = dir.path().join("big.toml");
+        let mut body = String::from("format_version = 1\n");
+        while (body.len() as u64) <= MAX_WORLD_FILE_BYTES {
+            body.push_str("# padding padding padding padding padding padding padding padding\n");
+        }
+        std::fs::write(&path, body).expect("write");
+        let result = load::<VersionProbe>(&path, 1, |_| Ok(()));
+        match result {
+            Err(FileFailure::Parse(m)) => assert!(m.contains("larger than"), "{m}"),
+            other => panic!("expected a refusal for size, got {:?}", other.err()),
+        }
+        // Within the cap the same reader reads it.
+        let small = dir.path().join("small.toml");
+        std::fs::write(&small, "format_version = 1\n").expect("write");
+        assert!(load::<VersionProbe>(&small, 1, |_| Ok(())).is_ok());
+    }
 }
 
 /// Parses and validates `text` in `encoding`; `supported` is the format version this build reads.

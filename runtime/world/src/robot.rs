@@ -183,6 +183,15 @@ pub enum RobotError {
     },
 }
 
+/// Highest `speed_mps` a robot file may give: the RMP's factory maximum velocity, m/s.
+pub const MAX_SPEED_MPS: f64 = 2.2352;
+/// Highest `accel_mps2`: the RMP's factory maximum acceleration, m/s^2.
+pub const MAX_ACCEL_MPS2: f64 = 3.923;
+/// Highest `yaw_rate_radps`: the RMP's factory maximum turn rate, rad/s.
+pub const MAX_YAW_RATE_RADPS: f64 = 3.0;
+/// Highest `yaw_accel_radps2`: the RMP's factory maximum turn acceleration, rad/s^2.
+pub const MAX_YAW_ACCEL_RADPS2: f64 = 28.274;
+
 impl RobotError {
     fn from_failure(failure: FileFailure, path: &Path) -> Self {
         let path = path.to_owned();
@@ -294,6 +303,26 @@ impl RobotConfig {
                 return Err(InvalidField::new(
                     field,
                     format!("must be positive, found {value}"),
+                ));
+            }
+        }
+        // What the Segway RMP can be set to do at most (its stored limits' factory values,
+        // docs/rmp.md): a robot file asking for more is a typo, not a faster robot.
+        let at_most = [
+            ("speed_mps", self.speed_mps, MAX_SPEED_MPS),
+            ("accel_mps2", self.accel_mps2, MAX_ACCEL_MPS2),
+            ("yaw_rate_radps", self.yaw_rate_radps, MAX_YAW_RATE_RADPS),
+            (
+                "yaw_accel_radps2",
+                self.yaw_accel_radps2,
+                MAX_YAW_ACCEL_RADPS2,
+            ),
+        ];
+        for (field, value, max) in at_most {
+            if value > max {
+                return Err(InvalidField::new(
+                    field,
+                    format!("at most {max} (the base's own limit), found {value}"),
                 ));
             }
         }

@@ -252,6 +252,26 @@ fn bad_robot_files_name_the_field() {
         msg.contains("nav_noise_sigma_m") && msg.contains("finite"),
         "{msg}"
     );
+    // Above what the base itself can be set to: refused, naming the limit.
+    for (from, to, field) in [
+        ("speed_mps = 0.4", "speed_mps = 40.0", "speed_mps"),
+        ("accel_mps2 = 0.5", "accel_mps2 = 9.0", "accel_mps2"),
+        (
+            "yaw_rate_radps = 1.0",
+            "yaw_rate_radps = 6.0",
+            "yaw_rate_radps",
+        ),
+        (
+            "yaw_accel_radps2 = 1.5",
+            "yaw_accel_radps2 = 100.0",
+            "yaw_accel_radps2",
+        ),
+    ] {
+        let bad = good.replacen(from, to, 1);
+        assert_ne!(bad, good, "the default file has {from}");
+        let msg = robot_error(&bad);
+        assert!(msg.contains(field) && msg.contains("at most"), "{msg}");
+    }
     let msg = robot_error(&good.replacen("speed_mps = 0.4", "speed_mps = 0.4\nturbo = true", 1));
     assert!(msg.contains("turbo"), "{msg}");
     let msg = robot_error(&good.replacen("format_version = 1", "format_version = 7", 1));
