@@ -76,31 +76,6 @@ fn read_capped(path: &Path) -> Result<String, FileFailure> {
     Ok(text)
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn a_file_past_the_cap_is_refused_before_it_is_parsed() {
-        let dir = tempfile::tempdir().expect("temp dir");
-        let path = dir.path().join("big.toml");
-        let mut body = String::from("format_version = 1\n");
-        while (body.len() as u64) <= MAX_WORLD_FILE_BYTES {
-            body.push_str("# padding padding padding padding padding padding padding padding\n");
-        }
-        std::fs::write(&path, body).expect("write");
-        let result = load::<VersionProbe>(&path, 1, |_| Ok(()));
-        match result {
-            Err(FileFailure::Parse(m)) => assert!(m.contains("larger than"), "{m}"),
-            other => panic!("expected a refusal for size, got {:?}", other.err()),
-        }
-        // Within the cap the same reader reads it.
-        let small = dir.path().join("small.toml");
-        std::fs::write(&small, "format_version = 1\n").expect("write");
-        assert!(load::<VersionProbe>(&small, 1, |_| Ok(())).is_ok());
-    }
-}
-
 /// Parses and validates `text` in `encoding`; `supported` is the format version this build reads.
 pub(crate) fn parse<T: DeserializeOwned>(
     text: &str,
@@ -132,4 +107,29 @@ pub(crate) fn parse<T: DeserializeOwned>(
     };
     validate(&value).map_err(FileFailure::Invalid)?;
     Ok(value)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_file_past_the_cap_is_refused_before_it_is_parsed() {
+        let dir = tempfile::tempdir().expect("temp dir");
+        let path = dir.path().join("big.toml");
+        let mut body = String::from("format_version = 1\n");
+        while (body.len() as u64) <= MAX_WORLD_FILE_BYTES {
+            body.push_str("# padding padding padding padding padding padding padding padding\n");
+        }
+        std::fs::write(&path, body).expect("write");
+        let result = load::<VersionProbe>(&path, 1, |_| Ok(()));
+        match result {
+            Err(FileFailure::Parse(m)) => assert!(m.contains("larger than"), "{m}"),
+            other => panic!("expected a refusal for size, got {:?}", other.err()),
+        }
+        // Within the cap the same reader reads it.
+        let small = dir.path().join("small.toml");
+        std::fs::write(&small, "format_version = 1\n").expect("write");
+        assert!(load::<VersionProbe>(&small, 1, |_| Ok(())).is_ok());
+    }
 }
