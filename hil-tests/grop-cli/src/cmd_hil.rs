@@ -18,7 +18,7 @@ use planner::problem::TaskProblem;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
-use trial_sim::shard::{Shard, ShardDir, ShardManifest};
+use trial_sim::shard::{Shard, ShardManifest};
 use world::generate::mix_seed;
 
 /// Arguments of `grop hil`.
@@ -124,18 +124,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let total = n;
     let n = chosen.len();
     let bins = mission::binaries(!args.no_build)?;
-    let shard_dir =
-        match args.shard {
-            Some(shard) => Some(ShardDir::create(&args.out_dir, shard).with_context(|| {
-                format!("creating the shard folder in {}", args.out_dir.display())
-            })?),
-            None => None,
-        };
-    let out_dir = match &shard_dir {
-        Some(d) => d.path().to_path_buf(),
-        None => args.out_dir.clone(),
-    };
-    std::fs::create_dir_all(&out_dir).with_context(|| format!("creating {}", out_dir.display()))?;
+    let (shard_dir, out_dir) = crate::common::output_folder(&args.out_dir, args.shard)?;
 
     // The calculation (what `grop eval` does for one method), task by task.
     let mut psi = FcnEvaluator::load(&model).context("loading Psi")?;

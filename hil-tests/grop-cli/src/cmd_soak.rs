@@ -18,7 +18,7 @@ use anyhow::Context;
 use hil_world::mission::{self, MissionSpec};
 use hil_world::report::MissionEnd;
 use serde::{Deserialize, Serialize};
-use trial_sim::shard::{Shard, ShardDir, ShardManifest};
+use trial_sim::shard::{Shard, ShardManifest};
 use world::RobotConfig;
 
 /// Arguments of `grop soak`.
@@ -170,18 +170,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let model = std::fs::canonicalize(&model)
         .with_context(|| format!("the feasibility network {}", args.model.display()))?;
     let bins = mission::binaries(!args.no_build)?;
-    let shard_dir =
-        match args.shard {
-            Some(shard) => Some(ShardDir::create(&args.out_dir, shard).with_context(|| {
-                format!("creating the shard folder in {}", args.out_dir.display())
-            })?),
-            None => None,
-        };
-    let out_dir = match &shard_dir {
-        Some(d) => d.path().to_path_buf(),
-        None => args.out_dir.clone(),
-    };
-    std::fs::create_dir_all(&out_dir).with_context(|| format!("creating {}", out_dir.display()))?;
+    let (shard_dir, out_dir) = crate::common::output_folder(&args.out_dir, args.shard)?;
     let machine = latency::machine::MachineInfo::now();
     let started = Instant::now();
     let before = resources();

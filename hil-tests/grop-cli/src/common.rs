@@ -109,3 +109,26 @@ pub fn workspace_path(rel: &str) -> std::path::PathBuf {
         .join("../..")
         .join(rel)
 }
+
+/// The folder a run writes to: `out_dir` itself, or with `--shard` the shard's own folder in it
+/// (created under a temporary name; the returned [`ShardDir`] renames it into place when the
+/// run is done). Either way the folder exists on return.
+pub fn output_folder(
+    out_dir: &std::path::Path,
+    shard: Option<trial_sim::shard::Shard>,
+) -> anyhow::Result<(Option<trial_sim::shard::ShardDir>, std::path::PathBuf)> {
+    use anyhow::Context;
+    let shard_dir = match shard {
+        Some(shard) => Some(
+            trial_sim::shard::ShardDir::create(out_dir, shard)
+                .with_context(|| format!("creating the shard folder in {}", out_dir.display()))?,
+        ),
+        None => None,
+    };
+    let dir = match &shard_dir {
+        Some(d) => d.path().to_path_buf(),
+        None => out_dir.to_path_buf(),
+    };
+    std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
+    Ok((shard_dir, dir))
+}
