@@ -45,21 +45,9 @@ RUST_LOG="${RUST_LOG:-warn}" "$sim" --rtde-port 30004 --dashboard-port 29999 --p
     --ports-file "$work/ports.json" >"$work/sim.log" 2>&1 &
 sim_pid=$!
 
-for _ in $(seq 1 100); do
-    [[ -s "$work/ports.json" ]] && break
-    if ! kill -0 "$sim_pid" 2>/dev/null; then
-        echo "ur-rtde-control-check: sim-ur5e exited early:" >&2
-        cat "$work/sim.log" >&2
-        echo "0 passed, 1 failed"
-        exit 1
-    fi
-    sleep 0.1
-done
-if [[ ! -s "$work/ports.json" ]]; then
-    echo "ur-rtde-control-check: sim-ur5e did not start listening" >&2
-    echo "0 passed, 1 failed"
-    exit 1
-fi
+# shellcheck source=sim-ur5e-wait.sh
+source "$root/.ci/sim-ur5e-wait.sh"
+wait_for_sim_ur5e ur-rtde-control-check
 
 status=0
 timeout 100 "$venv/bin/python" "$root/hil-tests/sim-ur5e/python/test_ur_rtde_control.py" || status=$?
