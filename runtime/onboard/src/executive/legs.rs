@@ -8,7 +8,8 @@ use grop_ipc::{EventKind, ReplanReason, TaskStep, TaskStepKind};
 use motion_control::follower::FollowStep;
 use motion_control::{Pose2, Twist};
 
-use super::mission::{CycleInputs, CycleOutputs, MissionCore, Phase};
+use super::cycle::{CycleInputs, CycleOutputs};
+use super::mission::{MissionCore, Phase};
 use super::worker::{Answer, Job, PathFailure};
 use super::{AbortReason, MissionState};
 use crate::localisation::{PlanarPose, wrap};

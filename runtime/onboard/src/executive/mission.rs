@@ -14,20 +14,21 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use grop_ipc::{
-    BasePoseMsg, EventKind, EventMsg, PoseFixKind, ProcessRole, ReplanReason, ReplanRequestMsg,
-    TaskPlanMsg, TaskStep, TaskStepKind,
+    EventKind, EventMsg, PoseFixKind, ProcessRole, ReplanReason, ReplanRequestMsg, TaskPlanMsg,
+    TaskStep, TaskStepKind,
 };
 use motion_control::Twist;
 use motion_control::follower::PathFollower;
-use rmp_base::{BaseError, BaseMode, Odometry, Tick};
+use rmp_base::{BaseError, BaseMode, Tick};
 use ur5e_kin::Joints;
 use world::nav::OccupancyGrid;
 
+use super::cycle::{ArmCommand, CycleInputs, CycleOutputs};
 use super::unload::{
     ArmFault, ArmPort, SkillStatus, TrayGeometry, UnloadFailure, UnloadProgress, UnloadSequence,
 };
 use super::worker::{Answer, Job, MAX_PATH_POINTS};
-use super::{AbortReason, ArmSnapshot, ExecutiveConfig, MAX_TRAY_SLOTS, MissionState};
+use super::{AbortReason, ExecutiveConfig, MAX_TRAY_SLOTS, MissionState};
 use crate::localisation::{FixOutcome, Localiser, PlanarPose};
 
 /// The arm must reach its carry pose within this.
@@ -44,213 +45,8 @@ enum Parking {
     Parked,
 }
 
-/// The longest leg a plan may ask for, s (an hour: no table-setting leg comes near it).
-pub const MAX_TRAVEL_COST_S: f64 = 3600.0;
-
-/// The highest object target a plan may name, m (the arm on the base reaches about 1.6 m).
-pub const MAX_TARGET_HEIGHT_M: f64 = 2.5;
-
-/// What is wrong with a plan's steps.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum PlanDefect {
-    /// A goal off the map.
-    OffMap {
-        /// Step index.
-        step: usize,
-    },
-    /// A travel cost outside 0 ..= [`MAX_TRAVEL_COST_S`].
-    TravelCost {
-        /// Step index.
-        step: usize,
-        /// The cost, s.
-        value: f64,
-    },
-    /// An object the task does not have.
-    UnknownObject {
-        /// Step index.
-        step: usize,
-        /// The object.
-        index: u32,
-        /// Objects of the task.
-        objects: u32,
-    },
-    /// An object target off the map or out of reach in height.
-    Target {
-        /// Step index.
-        step: usize,
-    },
-}
-
-impl std::fmt::Display for PlanDefect {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self {
-            Self::OffMap { step } => write!(f, "step {step}: goal off the map"),
-            Self::TravelCost { step, value } => {
-                write!(f, "step {step}: travel cost {value:.3e} s out of range")
-            }
-            Self::UnknownObject {
-                step,
-                index,
-                objects,
-            } => write!(f, "step {step}: object {index} of a task of {objects}"),
-            Self::Target { step } => write!(f, "step {step}: target off the map or out of reach"),
-        }
-    }
-}
-
 /// Most mission phases one base cycle runs through.
 const MAX_PHASES_PER_UPDATE: usize = 8;
-
-/// Most events one update emits (an abort emits two; a cycle rarely more than three).
-pub const MAX_EVENTS_PER_CYCLE: usize = 16;
-
-/// What the base reported, as the shell read it before the update.
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
-pub struct BaseReading {
-    /// Dead-reckoned pose and measured velocity.
-    pub odometry: Odometry,
-    /// Start-up done and in tractor mode.
-    pub driving: bool,
-}
-
-/// The collision monitor's verdict on the velocity path (filled in by the lidar work; until
-/// then the shell passes [`MonitorState::Clear`]).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub enum MonitorState {
-    /// Nothing in the way.
-    #[default]
-    Clear,
-    /// Something in the slowdown zone: the monitor scales the velocity.
-    Slowdown,
-    /// Something in the stop zone, or the scan is stale: zero velocity.
-    Stop,
-}
-
-/// Everything one update reads. Slices and references point into the shell's preallocated
-/// buffers.
-#[derive(Debug, Clone, Copy)]
-pub struct CycleInputs<'a> {
-    /// Runtime clock time of the cycle.
-    pub now: Duration,
-    /// This cycle runs the base loop (every `base_every`-th minor cycle).
-    pub base_cycle: bool,
-    /// The base's reading (odometry as of the last tick).
-    pub base: BaseReading,
-    /// The result of the base driver's last tick, given once, in the cycle after the tick.
-    pub base_tick: Option<&'a Result<Tick, BaseError>>,
-    /// The arm's state read this cycle.
-    pub arm: Result<ArmSnapshot, ArmFault>,
-    /// The result of the arm skill in flight (a poll, or a refused start), if one is.
-    pub skill: Option<Result<SkillStatus, ArmFault>>,
-    /// Pose fixes received since the last base cycle.
-    pub fixes: &'a [BasePoseMsg],
-    /// Plans received since the last base cycle.
-    pub plans: &'a [TaskPlanMsg],
-    /// Planner heartbeats received since the last base cycle.
-    pub planner_heartbeats: u32,
-    /// The planning worker's answer, if one came.
-    pub answer: Option<&'a Answer>,
-    /// Shutdown asked (a signal).
-    pub shutdown: bool,
-    /// The runtime clock is lost (the HIL world ended).
-    pub clock_lost: bool,
-    /// The collision monitor's state (the lidar work fills it in).
-    pub monitor: MonitorState,
-    /// The operator's enable (the safety work makes start-up wait for it).
-    pub operator_enable: bool,
-}
-
-impl<'a> CycleInputs<'a> {
-    /// Inputs at `now` with nothing received: an arm that reads a default state, no skill, no
-    /// fixes, no plans, no heartbeats. Tests and the shell fill in what they have.
-    pub fn quiet(now: Duration) -> Self {
-        Self {
-            now,
-            base_cycle: true,
-            base: BaseReading::default(),
-            base_tick: None,
-            arm: Ok(ArmSnapshot::default()),
-            skill: None,
-            fixes: &[],
-            plans: &[],
-            planner_heartbeats: 0,
-            answer: None,
-            shutdown: false,
-            clock_lost: false,
-            monitor: MonitorState::Clear,
-            operator_enable: true,
-        }
-    }
-}
-
-/// The one arm command of a cycle.
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
-pub enum ArmCommand {
-    /// Nothing new.
-    #[default]
-    None,
-    /// Start a joint move.
-    MoveJoints(Joints),
-    /// Start opening (`false`) or closing (`true`) the gripper.
-    Gripper(bool),
-    /// Stop any motion.
-    Stop,
-}
-
-/// Everything one update decided. The shell clears it ([`CycleOutputs::clear`]) before each
-/// update; nothing in it allocates.
-#[derive(Debug, Clone)]
-pub struct CycleOutputs {
-    /// The base velocity (the one velocity of the cycle; written to the driver on base cycles).
-    pub velocity: Twist,
-    /// A base mode to request.
-    pub base_mode: Option<BaseMode>,
-    /// Re-arm the base driver (the one explicit acknowledgement at mission start).
-    pub rearm_base: bool,
-    /// The arm command.
-    pub arm: ArmCommand,
-    /// A job for the planning worker.
-    pub job: Option<Job>,
-    /// A plan request to publish.
-    pub request: Option<ReplanRequestMsg>,
-    /// Events to publish, in order.
-    pub events: heapless::Vec<EventMsg, MAX_EVENTS_PER_CYCLE>,
-    /// Events that did not fit (counted, logged).
-    pub events_dropped: u32,
-    /// Set in the cycle the mission aborted.
-    pub abort: Option<AbortReason>,
-}
-
-impl Default for CycleOutputs {
-    fn default() -> Self {
-        Self {
-            velocity: Twist::ZERO,
-            base_mode: None,
-            rearm_base: false,
-            arm: ArmCommand::None,
-            job: None,
-            request: None,
-            events: heapless::Vec::new(),
-            events_dropped: 0,
-            abort: None,
-        }
-    }
-}
-
-impl CycleOutputs {
-    /// Empties it for the next update.
-    pub fn clear(&mut self) {
-        self.velocity = Twist::ZERO;
-        self.base_mode = None;
-        self.rearm_base = false;
-        self.arm = ArmCommand::None;
-        self.job = None;
-        self.request = None;
-        self.events.clear();
-        self.events_dropped = 0;
-        self.abort = None;
-    }
-}
 
 /// Counters the core keeps.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -366,9 +162,9 @@ pub struct MissionCore {
     /// Objects not yet placed (or given up), bit i = object i.
     remaining: u64,
     /// The task's objects, bit i = object i.
-    task_objects: u64,
+    pub(super) task_objects: u64,
     /// Tray slot -> object.
-    slots: [Option<u32>; MAX_TRAY_SLOTS],
+    pub(super) slots: [Option<u32>; MAX_TRAY_SLOTS],
     planner_seen: Option<Duration>,
     pub(super) next_job_id: u64,
     pub(super) velocity: Twist,
@@ -732,76 +528,7 @@ impl MissionCore {
         );
     }
 
-    /// Every number of every step against what the robot and the map allow: goals and targets
-    /// on the map, target heights the arm can reach, travel costs a leg can take, objects of
-    /// this task.
-    fn check_steps(&self, steps: &[TaskStep]) -> Result<(), PlanDefect> {
-        let on_map = |x: f64, y: f64| self.grid.cell_of(x, y).is_some();
-        let objects = 64 - self.task_objects.leading_zeros();
-        for (i, step) in steps.iter().enumerate() {
-            if !on_map(step.x_m, step.y_m) {
-                return Err(PlanDefect::OffMap { step: i });
-            }
-            if !(0.0..=MAX_TRAVEL_COST_S).contains(&step.travel_cost_s) {
-                return Err(PlanDefect::TravelCost {
-                    step: i,
-                    value: step.travel_cost_s,
-                });
-            }
-            match step.kind() {
-                Ok(TaskStepKind::Load) if step.load_mask & !self.task_objects != 0 => {
-                    return Err(PlanDefect::UnknownObject {
-                        step: i,
-                        index: 63 - (step.load_mask & !self.task_objects).leading_zeros(),
-                        objects,
-                    });
-                }
-                Ok(TaskStepKind::Unload) => {
-                    if step.object_index >= objects {
-                        return Err(PlanDefect::UnknownObject {
-                            step: i,
-                            index: step.object_index,
-                            objects,
-                        });
-                    }
-                    let [x, y, z] = step.target_m;
-                    if !on_map(x, y) || !(0.0..=MAX_TARGET_HEIGHT_M).contains(&z) {
-                        return Err(PlanDefect::Target { step: i });
-                    }
-                }
-                _ => {}
-            }
-        }
-        Ok(())
-    }
-
-    /// Whether the plan's loads fit the tray: from what is on board now, every load step adds
-    /// its objects not yet on board, every unload frees its object; never more than the usable
-    /// slots at once. The error is (step, objects on board, slots).
-    fn check_tray(&self, steps: &[TaskStep]) -> Result<(), (usize, usize, usize)> {
-        let slots = self.slots.len().min(self.tray.pick.len());
-        let mut on_board = self.on_board();
-        for (i, step) in steps.iter().enumerate() {
-            match step.kind() {
-                Ok(TaskStepKind::Load) => {
-                    on_board |= step.load_mask;
-                    let count = on_board.count_ones() as usize;
-                    if count > slots {
-                        return Err((i, count, slots));
-                    }
-                }
-                Ok(TaskStepKind::Unload) => {
-                    if let Ok(o) = step.object() {
-                        on_board &= !(1u64 << o);
-                    }
-                }
-                _ => {}
-            }
-        }
-        Ok(())
-    }
-
-    fn on_board(&self) -> u64 {
+    pub(super) fn on_board(&self) -> u64 {
         self.slots
             .iter()
             .flatten()

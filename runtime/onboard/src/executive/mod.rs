@@ -35,8 +35,10 @@
 
 pub mod arm_io;
 pub mod base;
+pub mod cycle;
 pub mod legs;
 pub mod mission;
+pub mod plan_check;
 pub mod shell;
 pub mod unload;
 pub mod ur5e_arm;
@@ -52,7 +54,8 @@ use crate::localisation::LocaliserConfig;
 use unload::{ArmFault, ArmPort};
 
 pub use base::BaseDevice;
-pub use mission::{ArmCommand, BaseReading, CycleInputs, CycleOutputs, MissionCore, MonitorState};
+pub use cycle::{ArmCommand, BaseReading, CycleInputs, CycleOutputs, MonitorState};
+pub use mission::MissionCore;
 pub use shell::{Executive, ExecutivePorts, RmpExecutive};
 
 /// What the executive needs of the arm besides the unload skills.

@@ -22,7 +22,8 @@ use world::Scene;
 use world::nav::OccupancyGrid;
 
 use super::base::BaseDevice;
-use super::mission::{ArmCommand, BaseReading, CycleInputs, CycleOutputs, MissionCore, ns};
+use super::cycle::{ArmCommand, BaseReading, CycleInputs, CycleOutputs};
+use super::mission::{MissionCore, ns};
 use super::unload::{self, ArmFault, SkillStatus, UnloadFailure};
 use super::worker::{Answer, Job, PathFailure, Worker};
 use super::{

@@ -1,0 +1,165 @@
+//! What one update of the mission core reads ([`CycleInputs`]) and writes ([`CycleOutputs`]):
+//! plain values and borrowed slices of the shell's preallocated buffers, nothing that
+//! allocates.
+
+use std::time::Duration;
+
+use grop_ipc::{BasePoseMsg, EventMsg, ReplanRequestMsg, TaskPlanMsg};
+use motion_control::Twist;
+use rmp_base::{BaseError, BaseMode, Odometry, Tick};
+use ur5e_kin::Joints;
+
+use super::unload::{ArmFault, SkillStatus};
+use super::worker::{Answer, Job};
+use super::{AbortReason, ArmSnapshot};
+
+/// Most events one update emits (an abort emits two; a cycle rarely more than three).
+pub const MAX_EVENTS_PER_CYCLE: usize = 16;
+
+/// What the base reported, as the shell read it before the update.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct BaseReading {
+    /// Dead-reckoned pose and measured velocity.
+    pub odometry: Odometry,
+    /// Start-up done and in tractor mode.
+    pub driving: bool,
+}
+
+/// The collision monitor's verdict on the velocity path (filled in by the lidar work; until
+/// then the shell passes [`MonitorState::Clear`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum MonitorState {
+    /// Nothing in the way.
+    #[default]
+    Clear,
+    /// Something in the slowdown zone: the monitor scales the velocity.
+    Slowdown,
+    /// Something in the stop zone, or the scan is stale: zero velocity.
+    Stop,
+}
+
+/// Everything one update reads. Slices and references point into the shell's preallocated
+/// buffers.
+#[derive(Debug, Clone, Copy)]
+pub struct CycleInputs<'a> {
+    /// Runtime clock time of the cycle.
+    pub now: Duration,
+    /// This cycle runs the base loop (every `base_every`-th minor cycle).
+    pub base_cycle: bool,
+    /// The base's reading (odometry as of the last tick).
+    pub base: BaseReading,
+    /// The result of the base driver's last tick, given once, in the cycle after the tick.
+    pub base_tick: Option<&'a Result<Tick, BaseError>>,
+    /// The arm's state read this cycle.
+    pub arm: Result<ArmSnapshot, ArmFault>,
+    /// The result of the arm skill in flight (a poll, or a refused start), if one is.
+    pub skill: Option<Result<SkillStatus, ArmFault>>,
+    /// Pose fixes received since the last base cycle.
+    pub fixes: &'a [BasePoseMsg],
+    /// Plans received since the last base cycle.
+    pub plans: &'a [TaskPlanMsg],
+    /// Planner heartbeats received since the last base cycle.
+    pub planner_heartbeats: u32,
+    /// The planning worker's answer, if one came.
+    pub answer: Option<&'a Answer>,
+    /// Shutdown asked (a signal).
+    pub shutdown: bool,
+    /// The runtime clock is lost (the HIL world ended).
+    pub clock_lost: bool,
+    /// The collision monitor's state (the lidar work fills it in).
+    pub monitor: MonitorState,
+    /// The operator's enable (the safety work makes start-up wait for it).
+    pub operator_enable: bool,
+}
+
+impl<'a> CycleInputs<'a> {
+    /// Inputs at `now` with nothing received: an arm that reads a default state, no skill, no
+    /// fixes, no plans, no heartbeats. Tests and the shell fill in what they have.
+    pub fn quiet(now: Duration) -> Self {
+        Self {
+            now,
+            base_cycle: true,
+            base: BaseReading::default(),
+            base_tick: None,
+            arm: Ok(ArmSnapshot::default()),
+            skill: None,
+            fixes: &[],
+            plans: &[],
+            planner_heartbeats: 0,
+            answer: None,
+            shutdown: false,
+            clock_lost: false,
+            monitor: MonitorState::Clear,
+            operator_enable: true,
+        }
+    }
+}
+
+/// The one arm command of a cycle.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub enum ArmCommand {
+    /// Nothing new.
+    #[default]
+    None,
+    /// Start a joint move.
+    MoveJoints(Joints),
+    /// Start opening (`false`) or closing (`true`) the gripper.
+    Gripper(bool),
+    /// Stop any motion.
+    Stop,
+}
+
+/// Everything one update decided. The shell clears it ([`CycleOutputs::clear`]) before each
+/// update; nothing in it allocates.
+#[derive(Debug, Clone)]
+pub struct CycleOutputs {
+    /// The base velocity (the one velocity of the cycle; written to the driver on base cycles).
+    pub velocity: Twist,
+    /// A base mode to request.
+    pub base_mode: Option<BaseMode>,
+    /// Re-arm the base driver (the one explicit acknowledgement at mission start).
+    pub rearm_base: bool,
+    /// The arm command.
+    pub arm: ArmCommand,
+    /// A job for the planning worker.
+    pub job: Option<Job>,
+    /// A plan request to publish.
+    pub request: Option<ReplanRequestMsg>,
+    /// Events to publish, in order.
+    pub events: heapless::Vec<EventMsg, MAX_EVENTS_PER_CYCLE>,
+    /// Events that did not fit (counted, logged).
+    pub events_dropped: u32,
+    /// Set in the cycle the mission aborted.
+    pub abort: Option<AbortReason>,
+}
+
+impl Default for CycleOutputs {
+    fn default() -> Self {
+        Self {
+            velocity: Twist::ZERO,
+            base_mode: None,
+            rearm_base: false,
+            arm: ArmCommand::None,
+            job: None,
+            request: None,
+            events: heapless::Vec::new(),
+            events_dropped: 0,
+            abort: None,
+        }
+    }
+}
+
+impl CycleOutputs {
+    /// Empties it for the next update.
+    pub fn clear(&mut self) {
+        self.velocity = Twist::ZERO;
+        self.base_mode = None;
+        self.rearm_base = false;
+        self.arm = ArmCommand::None;
+        self.job = None;
+        self.request = None;
+        self.events.clear();
+        self.events_dropped = 0;
+        self.abort = None;
+    }
+}

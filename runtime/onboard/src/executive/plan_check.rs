@@ -1,0 +1,131 @@
+//! The checks a plan passes before the core follows it: every number against what the robot
+//! and the map allow, and the loads against the tray.
+
+use grop_ipc::{TaskStep, TaskStepKind};
+
+use super::mission::MissionCore;
+
+/// The longest leg a plan may ask for, s (an hour: no table-setting leg comes near it).
+pub const MAX_TRAVEL_COST_S: f64 = 3600.0;
+
+/// The highest object target a plan may name, m (the arm on the base reaches about 1.6 m).
+pub const MAX_TARGET_HEIGHT_M: f64 = 2.5;
+
+/// What is wrong with a plan's steps.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum PlanDefect {
+    /// A goal off the map.
+    OffMap {
+        /// Step index.
+        step: usize,
+    },
+    /// A travel cost outside 0 ..= [`MAX_TRAVEL_COST_S`].
+    TravelCost {
+        /// Step index.
+        step: usize,
+        /// The cost, s.
+        value: f64,
+    },
+    /// An object the task does not have.
+    UnknownObject {
+        /// Step index.
+        step: usize,
+        /// The object.
+        index: u32,
+        /// Objects of the task.
+        objects: u32,
+    },
+    /// An object target off the map or out of reach in height.
+    Target {
+        /// Step index.
+        step: usize,
+    },
+}
+
+impl std::fmt::Display for PlanDefect {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::OffMap { step } => write!(f, "step {step}: goal off the map"),
+            Self::TravelCost { step, value } => {
+                write!(f, "step {step}: travel cost {value:.3e} s out of range")
+            }
+            Self::UnknownObject {
+                step,
+                index,
+                objects,
+            } => write!(f, "step {step}: object {index} of a task of {objects}"),
+            Self::Target { step } => write!(f, "step {step}: target off the map or out of reach"),
+        }
+    }
+}
+
+impl MissionCore {
+    /// Every number of every step against what the robot and the map allow: goals and targets
+    /// on the map, target heights the arm can reach, travel costs a leg can take, objects of
+    /// this task.
+    pub(super) fn check_steps(&self, steps: &[TaskStep]) -> Result<(), PlanDefect> {
+        let on_map = |x: f64, y: f64| self.grid.cell_of(x, y).is_some();
+        let objects = 64 - self.task_objects.leading_zeros();
+        for (i, step) in steps.iter().enumerate() {
+            if !on_map(step.x_m, step.y_m) {
+                return Err(PlanDefect::OffMap { step: i });
+            }
+            if !(0.0..=MAX_TRAVEL_COST_S).contains(&step.travel_cost_s) {
+                return Err(PlanDefect::TravelCost {
+                    step: i,
+                    value: step.travel_cost_s,
+                });
+            }
+            match step.kind() {
+                Ok(TaskStepKind::Load) if step.load_mask & !self.task_objects != 0 => {
+                    return Err(PlanDefect::UnknownObject {
+                        step: i,
+                        index: 63 - (step.load_mask & !self.task_objects).leading_zeros(),
+                        objects,
+                    });
+                }
+                Ok(TaskStepKind::Unload) => {
+                    if step.object_index >= objects {
+                        return Err(PlanDefect::UnknownObject {
+                            step: i,
+                            index: step.object_index,
+                            objects,
+                        });
+                    }
+                    let [x, y, z] = step.target_m;
+                    if !on_map(x, y) || !(0.0..=MAX_TARGET_HEIGHT_M).contains(&z) {
+                        return Err(PlanDefect::Target { step: i });
+                    }
+                }
+                _ => {}
+            }
+        }
+        Ok(())
+    }
+
+    /// Whether the plan's loads fit the tray: from what is on board now, every load step adds
+    /// its objects not yet on board, every unload frees its object; never more than the usable
+    /// slots at once. The error is (step, objects on board, slots).
+    pub(super) fn check_tray(&self, steps: &[TaskStep]) -> Result<(), (usize, usize, usize)> {
+        let slots = self.slots.len().min(self.tray.pick.len());
+        let mut on_board = self.on_board();
+        for (i, step) in steps.iter().enumerate() {
+            match step.kind() {
+                Ok(TaskStepKind::Load) => {
+                    on_board |= step.load_mask;
+                    let count = on_board.count_ones() as usize;
+                    if count > slots {
+                        return Err((i, count, slots));
+                    }
+                }
+                Ok(TaskStepKind::Unload) => {
+                    if let Ok(o) = step.object() {
+                        on_board &= !(1u64 << o);
+                    }
+                }
+                _ => {}
+            }
+        }
+        Ok(())
+    }
+}
