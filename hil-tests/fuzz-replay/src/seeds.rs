@@ -429,12 +429,16 @@ fn with_mode(mode: u8, text: &[u8]) -> Vec<u8> {
 
 fn scene_file() -> Vec<Vec<u8>> {
     let example = repo_file("runtime/world/data/example-scene.toml");
-    let demo = repo_file("hil-tests/grop-cli/out/demo-run/scene.toml");
-    let mut seeds = vec![with_mode(0, &example), with_mode(0, &demo)];
-    if let Ok(scene) = world::Scene::from_toml_str(&String::from_utf8_lossy(&example), "x.toml")
-        && let Ok(json) = scene.to_json_string()
-    {
-        seeds.push(with_mode(1, json.as_bytes()));
+    let mut seeds = vec![with_mode(0, &example)];
+    // The same scene as the world writes it for a run (serde's layout, not the hand-written
+    // one), and as JSON. Seeds never read a run's output folder: a clean checkout has none.
+    if let Ok(scene) = world::Scene::from_toml_str(&String::from_utf8_lossy(&example), "x.toml") {
+        if let Ok(toml) = scene.to_toml_string() {
+            seeds.push(with_mode(0, toml.as_bytes()));
+        }
+        if let Ok(json) = scene.to_json_string() {
+            seeds.push(with_mode(1, json.as_bytes()));
+        }
     }
     seeds
 }
@@ -466,7 +470,7 @@ fn deployment_file() -> Vec<Vec<u8>> {
                script_port = 30002\ngripper_port = 63352\n\n[planner]\nmethod = \"grop\"\n\
                paper_smp = false\nretry = \"none\"\n";
     vec![
-        repo_file("hil-tests/grop-cli/out/demo-run/deployment.toml"),
+        repo_file("hil-tests/fuzz-replay/data/hil-deployment.toml"),
         doc.as_bytes().to_vec(),
     ]
 }
