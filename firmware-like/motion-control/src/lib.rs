@@ -7,6 +7,8 @@
 //! * [`watchdog::Watchdog`]: "is this input fresh?"; stale or never-seen inputs mean stop.
 //! * [`mode::ModeSequencer`]: request a mode, resend until the device reports it, time out.
 //! * [`follower::PathFollower`]: pure-pursuit path following for a unicycle base.
+//! * [`collision::CollisionMonitor`]: the last law before the driver: stop, slowdown, approach
+//!   and docking shapes on raw range points.
 //!
 //! ```
 //! use motion_control::{Twist, limiter::{TwistLimiter, TwistLimits}, watchdog::Watchdog};
@@ -29,6 +31,7 @@
 #[cfg(test)]
 extern crate std;
 
+pub mod collision;
 pub mod follower;
 pub mod limiter;
 pub mod mode;
