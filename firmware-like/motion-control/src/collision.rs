@@ -584,7 +584,10 @@ mod tests {
         o.add(1.0, 0.0, [0.3, 0.275]);
         o.move_base(Pose2::new(0.1, 0.0, core::f32::consts::FRAC_PI_2), 50);
         let p = o.iter().next().unwrap();
-        assert!((p[0] - 0.0).abs() < 1e-5 && (p[1] + 0.9).abs() < 1e-5, "{p:?}");
+        assert!(
+            (p[0] - 0.0).abs() < 1e-5 && (p[1] + 0.9).abs() < 1e-5,
+            "{p:?}"
+        );
         assert_eq!(o.stamp_us(), 50);
     }
 

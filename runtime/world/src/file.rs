@@ -48,7 +48,7 @@ struct VersionProbe {
 /// Reads, parses and validates the file at `path` (encoding by extension).
 pub(crate) fn load<T: DeserializeOwned>(
     path: &Path,
-    supported: u32,
+    supported: std::ops::RangeInclusive<u32>,
     validate: impl FnOnce(&T) -> Result<(), InvalidField>,
 ) -> Result<T, FileFailure> {
     let encoding = encoding_of(path).ok_or(FileFailure::UnknownExtension)?;
@@ -76,11 +76,12 @@ fn read_capped(path: &Path) -> Result<String, FileFailure> {
     Ok(text)
 }
 
-/// Parses and validates `text` in `encoding`; `supported` is the format version this build reads.
+/// Parses and validates `text` in `encoding`; `supported` are the format versions this build
+/// reads (older ones load with the newer fields' defaults).
 pub(crate) fn parse<T: DeserializeOwned>(
     text: &str,
     encoding: FileEncoding,
-    supported: u32,
+    supported: std::ops::RangeInclusive<u32>,
     validate: impl FnOnce(&T) -> Result<(), InvalidField>,
 ) -> Result<T, FileFailure> {
     // Look at the version first so that an old or future file says so instead of failing
@@ -94,9 +95,12 @@ pub(crate) fn parse<T: DeserializeOwned>(
             .ok(),
     };
     if let Some(found) = version
-        && found != supported
+        && !supported.contains(&found)
     {
-        return Err(FileFailure::UnsupportedVersion { found, supported });
+        return Err(FileFailure::UnsupportedVersion {
+            found,
+            supported: *supported.end(),
+        });
     }
     let value: T = match encoding {
         FileEncoding::Toml => toml::from_str(text)
@@ -122,7 +126,7 @@ mod tests {
             body.push_str("# padding padding padding padding padding padding padding padding\n");
         }
         std::fs::write(&path, body).expect("write");
-        let result = load::<VersionProbe>(&path, 1, |_| Ok(()));
+        let result = load::<VersionProbe>(&path, 1..=1, |_| Ok(()));
         match result {
             Err(FileFailure::Parse(m)) => assert!(m.contains("larger than"), "{m}"),
             other => panic!("expected a refusal for size, got {:?}", other.err()),
@@ -130,6 +134,6 @@ mod tests {
         // Within the cap the same reader reads it.
         let small = dir.path().join("small.toml");
         std::fs::write(&small, "format_version = 1\n").expect("write");
-        assert!(load::<VersionProbe>(&small, 1, |_| Ok(())).is_ok());
+        assert!(load::<VersionProbe>(&small, 1..=1, |_| Ok(())).is_ok());
     }
 }

@@ -25,6 +25,7 @@ pub mod collision;
 mod file;
 pub mod generate;
 pub mod geometry;
+pub mod lidar;
 pub mod nav;
 pub mod robot;
 pub mod scene;
@@ -32,6 +33,7 @@ pub mod table_settings;
 pub mod view;
 
 pub use collision::base_collides;
+pub use lidar::{LidarSpec, RayScene};
 pub use robot::{BaseCollisionModel, BaseFootprint, RobotConfig, RobotError};
 pub use scene::{Chair, InvalidField, Scene, SceneError, UnloadTarget};
 pub use ur5e_kin::{ArmMount, BasePose, ObstacleBox, PlaceConfig};

@@ -1,7 +1,8 @@
 //! The robot file: base footprint, UR5e mount and placing settings, speeds and limits,
 //! navigation noise, the success reward R.
 //!
-//! Format (TOML or JSON by extension, `format_version = 1`) in `docs/world.md`; the default
+//! Format (TOML or JSON by extension, `format_version = 2`; version 1 files, written before the
+//! range sensor, still load with the default [`LidarSpec`]) in `docs/world.md`; the default
 //! file is `runtime/world/data/robot.toml` and equals [`RobotConfig::default`].
 
 use std::path::{Path, PathBuf};
@@ -11,16 +12,21 @@ use ur5e_kin::PlaceConfig;
 
 use crate::file::{self, FileEncoding, FileFailure, encoding_of};
 use crate::geometry::OrientedRect;
+use crate::lidar::LidarSpec;
 use crate::scene::{InvalidField, first_non_finite};
 
-/// The robot format version this crate reads and writes.
-pub const ROBOT_FORMAT_VERSION: u32 = 1;
+/// The robot format version this crate writes (2: the `[lidar]` section).
+pub const ROBOT_FORMAT_VERSION: u32 = 2;
+/// The oldest robot format version this crate reads.
+pub const OLDEST_ROBOT_FORMAT_VERSION: u32 = 1;
+
+const SUPPORTED: std::ops::RangeInclusive<u32> = OLDEST_ROBOT_FORMAT_VERSION..=ROBOT_FORMAT_VERSION;
 
 /// Everything about the robot that the world, the simulator and the planner need.
 #[derive(Serialize, Deserialize, Clone, Debug)]
 #[serde(deny_unknown_fields)]
 pub struct RobotConfig {
-    /// Must equal [`ROBOT_FORMAT_VERSION`].
+    /// [`OLDEST_ROBOT_FORMAT_VERSION`] to [`ROBOT_FORMAT_VERSION`].
     pub format_version: u32,
     /// The mobile base's body seen from above.
     pub footprint: BaseFootprint,
@@ -46,6 +52,9 @@ pub struct RobotConfig {
     /// of 3, one place setting), at most [`MAX_CARRY_CAPACITY`].
     #[serde(default = "default_carry_capacity")]
     pub carry_capacity: u32,
+    /// The range sensor (format version 2; a version 1 file gets [`LidarSpec::default`]).
+    #[serde(default)]
+    pub lidar: LidarSpec,
 }
 
 /// The tray of the default robot: 3 objects (one place setting).
@@ -124,6 +133,7 @@ impl Default for RobotConfig {
             success_bonus_r: 40.0,
             base_collision: BaseCollisionModel::Footprint,
             carry_capacity: DEFAULT_CARRY_CAPACITY,
+            lidar: LidarSpec::default(),
         }
     }
 }
@@ -215,7 +225,7 @@ impl RobotConfig {
     /// Reads and validates a robot file (`.toml` or `.json`).
     pub fn load(path: impl AsRef<Path>) -> Result<RobotConfig, RobotError> {
         let path = path.as_ref();
-        file::load(path, ROBOT_FORMAT_VERSION, RobotConfig::validate)
+        file::load(path, SUPPORTED, RobotConfig::validate)
             .map_err(|failure| RobotError::from_failure(failure, path))
     }
 
@@ -224,7 +234,7 @@ impl RobotConfig {
         encoding: FileEncoding,
         origin: &Path,
     ) -> Result<RobotConfig, RobotError> {
-        file::parse(text, encoding, ROBOT_FORMAT_VERSION, RobotConfig::validate)
+        file::parse(text, encoding, SUPPORTED, RobotConfig::validate)
             .map_err(|failure| RobotError::from_failure(failure, origin))
     }
 
@@ -276,11 +286,11 @@ impl RobotConfig {
 
     /// Checks every field's range (see `docs/world.md`); names the first bad field.
     pub fn validate(&self) -> Result<(), InvalidField> {
-        if self.format_version != ROBOT_FORMAT_VERSION {
+        if !SUPPORTED.contains(&self.format_version) {
             return Err(InvalidField::new(
                 "format_version",
                 format!(
-                    "found {}, this build reads {ROBOT_FORMAT_VERSION}",
+                    "found {}, this build reads {OLDEST_ROBOT_FORMAT_VERSION} to {ROBOT_FORMAT_VERSION}",
                     self.format_version
                 ),
             ));
@@ -356,6 +366,9 @@ impl RobotConfig {
                     self.carry_capacity
                 ),
             ));
+        }
+        if let Err((field, reason)) = self.lidar.check() {
+            return Err(InvalidField::new(field, reason));
         }
         if self.footprint.length_m > 3.0 || self.footprint.width_m > 3.0 {
             return Err(InvalidField::new(

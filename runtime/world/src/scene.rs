@@ -473,13 +473,22 @@ impl Scene {
     /// Reads and validates a scene file (`.toml` or `.json`).
     pub fn load(path: impl AsRef<Path>) -> Result<Scene, SceneError> {
         let path = path.as_ref();
-        file::load(path, SCENE_FORMAT_VERSION, Scene::validate)
-            .map_err(|failure| SceneError::from_failure(failure, path))
+        file::load(
+            path,
+            SCENE_FORMAT_VERSION..=SCENE_FORMAT_VERSION,
+            Scene::validate,
+        )
+        .map_err(|failure| SceneError::from_failure(failure, path))
     }
 
     fn parse_str(text: &str, encoding: FileEncoding, origin: &Path) -> Result<Scene, SceneError> {
-        file::parse(text, encoding, SCENE_FORMAT_VERSION, Scene::validate)
-            .map_err(|failure| SceneError::from_failure(failure, origin))
+        file::parse(
+            text,
+            encoding,
+            SCENE_FORMAT_VERSION..=SCENE_FORMAT_VERSION,
+            Scene::validate,
+        )
+        .map_err(|failure| SceneError::from_failure(failure, origin))
     }
 
     /// Parses and validates scene text in JSON; `origin` names the source in errors.

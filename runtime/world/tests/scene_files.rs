@@ -274,8 +274,32 @@ fn bad_robot_files_name_the_field() {
     }
     let msg = robot_error(&good.replacen("speed_mps = 0.4", "speed_mps = 0.4\nturbo = true", 1));
     assert!(msg.contains("turbo"), "{msg}");
-    let msg = robot_error(&good.replacen("format_version = 1", "format_version = 7", 1));
+    let msg = robot_error(&good.replacen("format_version = 2", "format_version = 7", 1));
     assert!(msg.contains("format_version"), "{msg}");
+
+    // A version 1 file (before the range sensor) still loads, with the default sensor; a bad
+    // sensor field is named.
+    let lidar_at = good
+        .find("[lidar]")
+        .expect("the default file has a [lidar] section");
+    let end = good[lidar_at..]
+        .find("\n[")
+        .and_then(|a| {
+            good[lidar_at + a + 1..]
+                .find("\n[")
+                .map(|b| lidar_at + a + 1 + b + 1)
+        })
+        .unwrap_or(good.len());
+    let v1 = format!("{}{}", &good[..lidar_at], &good[end..]).replacen(
+        "format_version = 2",
+        "format_version = 1",
+        1,
+    );
+    assert!(!v1.contains("lidar"), "{v1}");
+    let old = RobotConfig::from_toml_str(&v1, "v1.toml").expect("a version 1 file loads");
+    assert_eq!(old.lidar, world::LidarSpec::default());
+    let msg = robot_error(&good.replacen("rpm = 600.0", "rpm = 5000.0", 1));
+    assert!(msg.contains("lidar.rpm"), "{msg}");
 
     let msg = robot_error(&good.replacen("carry_capacity = 3", "carry_capacity = 0", 1));
     assert!(msg.contains("carry_capacity"), "{msg}");
