@@ -125,8 +125,9 @@ impl Obstacles {
     /// Moves every kept point into the frame of a base that has since moved by `motion`
     /// (the new base pose expressed in the old base frame): deskews a scan by odometry. Bins
     /// are not recomputed (a few centimetres of motion move a point by less than a bin at the
-    /// ranges that matter).
-    pub fn move_base(&mut self, motion: Pose2, stamp_us: u64) {
+    /// ranges that matter). The stamp stays the scan's: moving old points does not make them
+    /// fresh.
+    pub fn move_base(&mut self, motion: Pose2) {
         let (s, c) = (libm::sinf(motion.yaw_rad), libm::cosf(motion.yaw_rad));
         for (p, r2) in self.points.iter_mut().zip(self.range2.iter_mut()) {
             if r2.is_finite() {
@@ -136,7 +137,6 @@ impl Obstacles {
                 *r2 = p[0] * p[0] + p[1] * p[1];
             }
         }
-        self.stamp_us = stamp_us;
     }
 }
 
@@ -582,13 +582,17 @@ mod tests {
         let mut o = Obstacles::new();
         o.clear(0);
         o.add(1.0, 0.0, [0.3, 0.275]);
-        o.move_base(Pose2::new(0.1, 0.0, core::f32::consts::FRAC_PI_2), 50);
+        o.move_base(Pose2::new(0.1, 0.0, core::f32::consts::FRAC_PI_2));
         let p = o.iter().next().unwrap();
         assert!(
             (p[0] - 0.0).abs() < 1e-5 && (p[1] + 0.9).abs() < 1e-5,
             "{p:?}"
         );
-        assert_eq!(o.stamp_us(), 50);
+        assert_eq!(
+            o.stamp_us(),
+            0,
+            "moving old points does not make them fresh"
+        );
     }
 
     #[test]

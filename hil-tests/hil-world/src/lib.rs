@@ -336,6 +336,7 @@ impl World {
         let mut goal_reached_pending = false;
         let mut collided_this_leg = false;
         let mut in_collision = [false; 2];
+        let mut blocked_since_check = false;
         let mut first_request: Option<f64> = None;
         let mut first_plan: Option<f64> = None;
         let mut first_motion: Option<f64> = None;
@@ -397,8 +398,19 @@ impl World {
             if let Err(e) = bus.set_now(now) {
                 log::warn!("world: CAN injector: {e}");
             }
+            let before = self.base.sim().kinematics();
+            let pose_before = self.base_pose();
             if let Err(e) = self.base.poll(now) {
                 log::warn!("world: sim-rmp: {e}");
+            }
+            // Contact is not free: a base that would move into furniture stays where it was,
+            // its drives stalled (one already touching, e.g. from its start or a chair pushed
+            // against it, may move, so that it can get away).
+            if world::base_collides(&cfg.scene, &cfg.robot, self.base_pose())
+                && !world::base_collides(&cfg.scene, &cfg.robot, pose_before)
+            {
+                self.base.sim_mut().block(before);
+                blocked_since_check = true;
             }
             if let Err(e) = self.arm.step() {
                 log::warn!("world: sim-ur5e step: {e}");
@@ -478,7 +490,8 @@ impl World {
             // Collisions, every 10 ms.
             if now >= next_collision_check {
                 next_collision_check = now + Duration::from_millis(10);
-                let base_hit = world::base_collides(&cfg.scene, &cfg.robot, pose);
+                let base_hit = world::base_collides(&cfg.scene, &cfg.robot, pose)
+                    || std::mem::take(&mut blocked_since_check);
                 cfg.scene
                     .obstacle_boxes_into(&cfg.robot, pose, &mut obstacles);
                 // The robot's own body (first box) is not furniture.

@@ -97,6 +97,23 @@ pub struct SimStats {
     pub replies: u64,
     /// Times the loss-of-command timeout fired.
     pub command_losses: u64,
+    /// Times the base was pushed back by an obstacle ([`SimRmp::block`]).
+    pub blocks: u64,
+}
+
+/// Where the base and its wheels are: what [`SimRmp::block`] puts back.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Kinematics {
+    pose: SimPose,
+    linear_position_m: f64,
+    wheel_positions_m: [f64; 4],
+}
+
+impl Kinematics {
+    /// The pose.
+    pub fn pose(&self) -> SimPose {
+        self.pose
+    }
 }
 
 /// The simulated base: protocol state machine plus kinematics, on an external clock.
@@ -180,6 +197,30 @@ impl SimRmp {
     /// Ground-truth pose.
     pub fn pose(&self) -> SimPose {
         self.pose
+    }
+
+    /// Where the base and its wheels are now.
+    pub fn kinematics(&self) -> Kinematics {
+        Kinematics {
+            pose: self.pose,
+            linear_position_m: self.linear_position_m,
+            wheel_positions_m: self.wheel_positions_m,
+        }
+    }
+
+    /// The base ran into something: it is back where it was (`at`, before the step that went
+    /// into the obstacle), its drives stalled (speed and yaw rate zero, the wheels did not
+    /// turn). The next physics step accelerates again from rest toward the command, so a base
+    /// that keeps pushing stays against the obstacle with its measured velocity near zero: what
+    /// a real base's current-limited motors do.
+    pub fn block(&mut self, at: Kinematics) {
+        self.pose = at.pose;
+        self.linear_position_m = at.linear_position_m;
+        self.wheel_positions_m = at.wheel_positions_m;
+        self.speed_mps = 0.0;
+        self.yaw_rate_radps = 0.0;
+        self.linear_accel_mps2 = 0.0;
+        self.stats.blocks += 1;
     }
 
     /// Actual forward speed (m/s) and counter-clockwise yaw rate (rad/s).

@@ -317,6 +317,10 @@ pub enum EventKind {
     ObjectJudged = 15,
     /// A leg of the plan was driven (or given up).
     LegFinished = 16,
+    /// The collision monitor stopped the base (an obstacle in the stop zone, a stale scan) or
+    /// let it go again, or the base stalled against something (commanded motion, none
+    /// measured); the detail says which.
+    Obstacle = 17,
 }
 
 impl EventKind {
@@ -338,6 +342,7 @@ impl EventKind {
             14 => Self::Collision,
             15 => Self::ObjectJudged,
             16 => Self::LegFinished,
+            17 => Self::Obstacle,
             _ => {
                 return Err(MessageError::UnknownEnumValue {
                     message: "EventMsg",

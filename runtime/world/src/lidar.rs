@@ -462,8 +462,10 @@ mod tests {
     #[test]
     fn the_default_spec_checks_and_bad_values_are_named() {
         LidarSpec::default().check().expect("default");
-        let mut bad = LidarSpec::default();
-        bad.rpm = 100.0;
+        let bad = LidarSpec {
+            rpm: 100.0,
+            ..LidarSpec::default()
+        };
         assert_eq!(bad.check().unwrap_err().0, "lidar.rpm");
         let mut bad = LidarSpec::default();
         bad.mount.z_m = f64::NAN;

@@ -25,18 +25,12 @@ pub struct BaseReading {
     pub driving: bool,
 }
 
-/// The collision monitor's verdict on the velocity path (filled in by the lidar work; until
-/// then the shell passes [`MonitorState::Clear`]).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub enum MonitorState {
-    /// Nothing in the way.
-    #[default]
-    Clear,
-    /// Something in the slowdown zone: the monitor scales the velocity.
-    Slowdown,
-    /// Something in the stop zone, or the scan is stale: zero velocity.
-    Stop,
-}
+/// What the collision monitor did with the last velocity (the shell runs it between the core
+/// and the base driver).
+pub use motion_control::collision::Action as MonitorAction;
+/// Which shapes the collision monitor uses (the core asks for the docking shape on the last
+/// metres to a standing spot).
+pub use motion_control::collision::MonitorMode;
 
 /// Everything one update reads. Slices and references point into the shell's preallocated
 /// buffers.
@@ -66,8 +60,10 @@ pub struct CycleInputs<'a> {
     pub shutdown: bool,
     /// The runtime clock is lost (the HIL world ended).
     pub clock_lost: bool,
-    /// The collision monitor's state (the lidar work fills it in).
-    pub monitor: MonitorState,
+    /// What the collision monitor did on the last base cycle.
+    pub monitor: MonitorAction,
+    /// The velocity the shell last sent to the base (after the collision monitor).
+    pub sent: Twist,
     /// The operator's enable (the safety work makes start-up wait for it).
     pub operator_enable: bool,
 }
@@ -89,7 +85,8 @@ impl<'a> CycleInputs<'a> {
             answer: None,
             shutdown: false,
             clock_lost: false,
-            monitor: MonitorState::Clear,
+            monitor: MonitorAction::Clear,
+            sent: Twist::ZERO,
             operator_enable: true,
         }
     }
@@ -113,8 +110,11 @@ pub enum ArmCommand {
 /// update; nothing in it allocates.
 #[derive(Debug, Clone)]
 pub struct CycleOutputs {
-    /// The base velocity (the one velocity of the cycle; written to the driver on base cycles).
+    /// The base velocity (the one velocity of the cycle; written to the driver on base cycles,
+    /// through the collision monitor).
     pub velocity: Twist,
+    /// The collision monitor's shapes for that velocity.
+    pub monitor_mode: MonitorMode,
     /// A base mode to request.
     pub base_mode: Option<BaseMode>,
     /// Re-arm the base driver (the one explicit acknowledgement at mission start).
@@ -137,6 +137,7 @@ impl Default for CycleOutputs {
     fn default() -> Self {
         Self {
             velocity: Twist::ZERO,
+            monitor_mode: MonitorMode::Normal,
             base_mode: None,
             rearm_base: false,
             arm: ArmCommand::None,
@@ -153,6 +154,7 @@ impl CycleOutputs {
     /// Empties it for the next update.
     pub fn clear(&mut self) {
         self.velocity = Twist::ZERO;
+        self.monitor_mode = MonitorMode::Normal;
         self.base_mode = None;
         self.rearm_base = false;
         self.arm = ArmCommand::None;

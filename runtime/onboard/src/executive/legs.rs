@@ -129,14 +129,19 @@ impl MissionCore {
                         [goal[0] as f32, goal[1] as f32],
                     ];
                     match self.follower.set_path(&points) {
-                        Ok(()) => Some(Phase::Following {
-                            deadline: self.leg_deadline(step, pose, now),
-                        }),
+                        Ok(()) => {
+                            // The last metres: the collision monitor's docking shape.
+                            self.docking = true;
+                            Some(Phase::Following {
+                                deadline: self.leg_deadline(step, pose, now),
+                            })
+                        }
                         Err(_) => self.leg_failed(step, now, "docking path refused", outputs),
                     }
                 }
                 None => {
                     self.failed_legs = 0;
+                    self.docking = false;
                     let err = pose.distance_m(&PlanarPose::new(step.x_m, step.y_m, 0.0));
                     self.event(
                         EventKind::GoalReached,
@@ -175,6 +180,8 @@ impl MissionCore {
                 .find(|d| self.grid.is_free((pose.x_m - c * d, pose.y_m - s * d)))
                 .unwrap_or(0.0);
             if distance_m > 0.0 {
+                // Backing out of the standing spot: the same tight stretch as docking.
+                self.docking = true;
                 return Phase::Reversing {
                     start: pose,
                     distance_m,
@@ -198,6 +205,7 @@ impl MissionCore {
     ) -> Phase {
         let id = self.next_job_id;
         self.next_job_id += 1;
+        self.docking = false;
         let mut to = (step.x_m, step.y_m);
         self.dock = None;
         let unload_next = self
@@ -242,13 +250,15 @@ impl MissionCore {
             .saturating_add(self.config.leg_slack)
     }
 
-    fn leg_failed(
+    pub(super) fn leg_failed(
         &mut self,
         step: &TaskStep,
         now: Duration,
         why: &str,
         outputs: &mut CycleOutputs,
     ) -> Option<Phase> {
+        self.docking = false;
+        self.velocity = Twist::ZERO;
         self.event(
             EventKind::LegFinished,
             now,

@@ -23,7 +23,7 @@ use rmp_base::{BaseError, BaseMode, Tick};
 use ur5e_kin::Joints;
 use world::nav::OccupancyGrid;
 
-use super::cycle::{ArmCommand, CycleInputs, CycleOutputs};
+use super::cycle::{ArmCommand, CycleInputs, CycleOutputs, MonitorAction, MonitorMode};
 use super::unload::{
     ArmFault, ArmPort, SkillStatus, TrayGeometry, UnloadFailure, UnloadProgress, UnloadSequence,
 };
@@ -57,6 +57,10 @@ pub struct CoreStats {
     pub unloads_failed: u32,
     /// Plans accepted.
     pub plans: u32,
+    /// Times the collision monitor held the base (stop zone or stale scan).
+    pub monitor_holds: u32,
+    /// Stalls (motion sent, none measured).
+    pub stalls: u32,
 }
 
 /// Step progress.
@@ -178,6 +182,12 @@ pub struct MissionCore {
     global_fix_received: Option<Duration>,
     /// Fixes refused for a stamp in the future.
     future_fixes: u64,
+    /// On the docking stretch of a leg (the monitor's docking shape).
+    pub(super) docking: bool,
+    /// Since when the collision monitor has held the base (stop zone or stale scan).
+    monitor_hold_since: Option<Duration>,
+    /// Since when motion is sent and none measured.
+    stall_since: Option<Duration>,
     pub(super) stats: CoreStats,
 }
 
@@ -228,6 +238,9 @@ impl MissionCore {
             event_seq: 0,
             global_fix_received: None,
             future_fixes: 0,
+            docking: false,
+            monitor_hold_since: None,
+            stall_since: None,
             stats: CoreStats::default(),
         }
     }
@@ -245,6 +258,11 @@ impl MissionCore {
     /// The localisation estimate.
     pub fn estimate(&self) -> PlanarPose {
         self.localiser.estimate()
+    }
+
+    /// The base's footprint (the robot file's).
+    pub fn footprint(&self) -> world::BaseFootprint {
+        self.config.robot.footprint
     }
 
     /// The velocity the core commands now.
@@ -270,9 +288,114 @@ impl MissionCore {
             self.base_tick(tick, now, outputs);
         }
         if inputs.base_cycle {
+            self.watch_motion(inputs, outputs);
             self.base_loop(inputs, outputs);
         }
         outputs.velocity = self.velocity;
+        outputs.monitor_mode = if self.docking {
+            MonitorMode::Docking
+        } else {
+            MonitorMode::Normal
+        };
+    }
+
+    /// The collision monitor's holds and stalls: reported when they start and end; a hold that
+    /// lasts (an obstacle that does not go away), or a stall (motion sent, none measured: the
+    /// base pushes against something), fails the leg, which is then planned again from here.
+    fn watch_motion(&mut self, inputs: &CycleInputs<'_>, outputs: &mut CycleOutputs) {
+        let now = inputs.now;
+        let holding = matches!(inputs.monitor, MonitorAction::Stop | MonitorAction::Stale);
+        match (holding, self.monitor_hold_since) {
+            (true, None) => {
+                self.monitor_hold_since = Some(now);
+                let why = if inputs.monitor == MonitorAction::Stale {
+                    "no fresh scan"
+                } else {
+                    "an obstacle in the stop zone"
+                };
+                self.stats.monitor_holds += 1;
+                if matches!(self.state, MissionState::Running) && self.velocity != Twist::ZERO {
+                    self.event(
+                        EventKind::Obstacle,
+                        now,
+                        format_args!("collision monitor: base held ({why})"),
+                        outputs,
+                    );
+                }
+            }
+            (false, Some(since)) => {
+                self.monitor_hold_since = None;
+                if matches!(self.state, MissionState::Running) {
+                    self.event(
+                        EventKind::Obstacle,
+                        now,
+                        format_args!(
+                            "collision monitor: clear again after {:.1} s",
+                            now.saturating_sub(since).as_secs_f64()
+                        ),
+                        outputs,
+                    );
+                }
+            }
+            _ => {}
+        }
+        let sent = inputs.sent;
+        let measured = inputs.base.odometry;
+        let pushing = sent.speed_mps.abs() >= 0.03 || sent.yaw_rate_radps.abs() >= 0.1;
+        let still = measured.speed_mps.abs() < 0.005 && measured.yaw_rate_radps.abs() < 0.01;
+        if pushing && still && inputs.base.driving {
+            let since = *self.stall_since.get_or_insert(now);
+            if now.saturating_sub(since) >= self.config.stall_after {
+                self.stall_since = None;
+                self.stats.stalls += 1;
+                self.velocity = Twist::ZERO;
+                if let Some(step) = self.current_step()
+                    && matches!(self.state, MissionState::Running)
+                    && self.phase.is_some()
+                {
+                    self.event(
+                        EventKind::Obstacle,
+                        now,
+                        format_args!(
+                            "stall: {:.2} m/s {:.2} rad/s sent, no motion measured for {:.1} s",
+                            sent.speed_mps,
+                            sent.yaw_rate_radps,
+                            self.config.stall_after.as_secs_f64()
+                        ),
+                        outputs,
+                    );
+                    self.phase =
+                        self.leg_failed(&step, now, "stalled against an obstacle", outputs);
+                }
+            }
+        } else {
+            self.stall_since = None;
+        }
+        if let Some(since) = self.monitor_hold_since {
+            let limit = if self.docking {
+                self.config.docking_blocked_timeout
+            } else {
+                self.config.blocked_timeout
+            };
+            let leg_running = matches!(
+                self.phase,
+                Some(Phase::Following { .. } | Phase::Aligning { .. } | Phase::Reversing { .. })
+            );
+            if leg_running
+                && matches!(self.state, MissionState::Running)
+                && now.saturating_sub(since) >= limit
+                && let Some(step) = self.current_step()
+            {
+                // Counted again from now: the new leg gets its own time.
+                self.monitor_hold_since = Some(now);
+                let what = if self.docking {
+                    "the standing spot is taken (the scan sees something there)"
+                } else {
+                    "blocked by an obstacle the scan sees"
+                };
+                self.phase = self.leg_failed(&step, now, what, outputs);
+            }
+        }
     }
 
     fn arm_reading(&mut self, inputs: &CycleInputs<'_>, outputs: &mut CycleOutputs) {

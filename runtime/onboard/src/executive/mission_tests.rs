@@ -62,12 +62,20 @@ impl Bench {
     /// One base cycle (20 ms later), with `edit` changing the inputs.
     fn step<'a>(&mut self, edit: impl FnOnce(&mut CycleInputs<'a>)) {
         self.now += 20 * MS;
+        let mut inputs = CycleInputs::quiet(self.now);
+        inputs.planner_heartbeats = 1;
+        edit(&mut inputs);
+        // The base moves as the shell would drive it: the core's velocity, unless the collision
+        // monitor holds it.
+        let held = matches!(inputs.monitor, MonitorAction::Stop | MonitorAction::Stale);
         let dt = 0.02;
-        let v = f64::from(self.core.velocity().speed_mps);
-        let w = f64::from(self.core.velocity().yaw_rate_radps);
-        self.odo.x_m += v * self.odo.yaw_rad.cos() * dt;
-        self.odo.y_m += v * self.odo.yaw_rad.sin() * dt;
-        self.odo.yaw_rad += w * dt;
+        if !held {
+            let v = f64::from(self.core.velocity().speed_mps);
+            let w = f64::from(self.core.velocity().yaw_rate_radps);
+            self.odo.x_m += v * self.odo.yaw_rad.cos() * dt;
+            self.odo.y_m += v * self.odo.yaw_rad.sin() * dt;
+            self.odo.yaw_rad += w * dt;
+        }
         let fixes: &'a [BasePoseMsg] = if self.fixes_on {
             self.fix_seq += 1;
             let fix = BasePoseMsg::fix(
@@ -84,14 +92,13 @@ impl Bench {
         } else {
             &[]
         };
-        let mut inputs = CycleInputs::quiet(self.now);
         inputs.base = BaseReading {
             odometry: self.odo,
             driving: true,
         };
-        inputs.fixes = fixes;
-        inputs.planner_heartbeats = 1;
-        edit(&mut inputs);
+        if inputs.fixes.is_empty() {
+            inputs.fixes = fixes;
+        }
         self.out.clear();
         self.core.update(&inputs, &mut self.out);
         for e in &self.out.events {
@@ -518,4 +525,66 @@ fn an_arm_that_fails_to_park_aborts() {
         MissionState::Aborted(AbortReason::ArmStopped)
     );
     assert_eq!(b.out.velocity, Twist::ZERO);
+}
+
+#[test]
+fn a_collision_monitor_hold_is_reported_and_one_that_lasts_fails_the_leg() {
+    let mut b = driving();
+    let timeout = config().blocked_timeout;
+    let cycles = (timeout.as_millis() / 20) as usize;
+    // Held for less than the timeout, then clear again: reported twice, the leg goes on.
+    for _ in 0..cycles / 2 {
+        b.step(|i| i.monitor = MonitorAction::Stop);
+    }
+    b.step(|_| {});
+    let reports: Vec<&String> = b
+        .events
+        .iter()
+        .filter(|(k, _)| *k == EventKind::Obstacle)
+        .map(|(_, d)| d)
+        .collect();
+    assert_eq!(reports.len(), 2, "{reports:?}");
+    assert!(reports[0].contains("stop zone") && reports[1].contains("clear again"));
+    assert!(!b.saw(EventKind::LegFinished));
+    // A stale scan that lasts the timeout: the leg fails and a new plan is asked for.
+    for _ in 0..=cycles {
+        b.step(|i| i.monitor = MonitorAction::Stale);
+    }
+    assert!(
+        b.events
+            .iter()
+            .any(|(k, d)| *k == EventKind::LegFinished && d.contains("blocked by an obstacle")),
+        "{:?}",
+        b.events
+    );
+    assert!(b.out.request.is_some() || b.saw(EventKind::ReplanRequested));
+    assert_eq!(b.core.stats().monitor_holds, 2);
+}
+
+#[test]
+fn motion_sent_with_none_measured_is_a_stall_that_stops_the_leg() {
+    let mut b = driving();
+    let cycles = (config().stall_after.as_millis() / 20) as usize;
+    // The base reports no speed (the bench's odometry reports 0 m/s) while 0.3 m/s is sent.
+    for _ in 0..cycles - 2 {
+        b.step(|i| i.sent = Twist::new(0.3, 0.0));
+    }
+    assert!(!b.saw(EventKind::Obstacle), "not yet: {:?}", b.events);
+    for _ in 0..3 {
+        b.step(|i| i.sent = Twist::new(0.3, 0.0));
+    }
+    assert!(
+        b.events
+            .iter()
+            .any(|(k, d)| *k == EventKind::Obstacle && d.starts_with("stall")),
+        "{:?}",
+        b.events
+    );
+    assert!(
+        b.events
+            .iter()
+            .any(|(k, d)| *k == EventKind::LegFinished && d.contains("stalled"))
+    );
+    assert_eq!(b.out.velocity, Twist::ZERO);
+    assert_eq!(b.core.stats().stalls, 1);
 }

@@ -39,6 +39,7 @@ pub mod cycle;
 pub mod legs;
 pub mod mission;
 pub mod plan_check;
+pub mod range;
 pub mod shell;
 pub mod unload;
 pub mod ur5e_arm;
@@ -54,7 +55,7 @@ use crate::localisation::LocaliserConfig;
 use unload::{ArmFault, ArmPort};
 
 pub use base::BaseDevice;
-pub use cycle::{ArmCommand, BaseReading, CycleInputs, CycleOutputs, MonitorState};
+pub use cycle::{ArmCommand, BaseReading, CycleInputs, CycleOutputs, MonitorAction, MonitorMode};
 pub use mission::MissionCore;
 pub use shell::{Executive, ExecutivePorts, RmpExecutive};
 
@@ -131,6 +132,13 @@ pub struct ExecutiveConfig {
     pub path_clearance_m: f64,
     /// The robot file (limits, footprint, arm mount).
     pub robot: RobotConfig,
+    /// A leg the collision monitor holds (stop zone, stale scan) this long is given up and
+    /// planned again from where the base stands.
+    pub blocked_timeout: Duration,
+    /// The same on the docking stretch (a chair moved into the standing spot).
+    pub docking_blocked_timeout: Duration,
+    /// Motion sent to the base with none measured for this long is a stall: the leg stops.
+    pub stall_after: Duration,
 }
 
 impl ExecutiveConfig {
@@ -163,6 +171,9 @@ impl ExecutiveConfig {
             tray_slots: unload::default_tray_slots().to_vec(),
             path_clearance_m: 0.15,
             robot: robot.clone(),
+            blocked_timeout: Duration::from_secs(8),
+            docking_blocked_timeout: Duration::from_secs(3),
+            stall_after: Duration::from_secs(1),
         }
     }
 }

@@ -21,9 +21,13 @@ use rmp_codec::v3::OperationalState;
 use world::Scene;
 use world::nav::OccupancyGrid;
 
+use motion_control::collision::{CollisionMonitor, MonitorConfig, Obstacles, Verdict};
+use motion_control::{Pose2, Twist};
+
 use super::base::BaseDevice;
 use super::cycle::{ArmCommand, BaseReading, CycleInputs, CycleOutputs};
 use super::mission::{MissionCore, ns};
+use super::range::{MapOverhangs, RangeSensor};
 use super::unload::{self, ArmFault, SkillStatus, UnloadFailure};
 use super::worker::{Answer, Job, PathFailure, Worker};
 use super::{
@@ -103,6 +107,23 @@ pub struct Executive<D: BaseDevice, A: ArmDevice> {
     stats: ExecutiveStats,
     /// Wake-up lateness of the minor cycle (allocation-free histogram).
     loop_stats: grop_clock::rt::LoopStats,
+    /// The range sensor and the collision monitor between the core and the base driver
+    /// (`None`: no sensor configured, the monitor is off).
+    guard: Option<Guard>,
+    /// What the monitor did on the last base cycle, and the velocity sent.
+    last_verdict: Verdict,
+}
+
+/// The range sensor, the collision monitor and its buffers.
+struct Guard {
+    sensor: Box<dyn RangeSensor>,
+    monitor: CollisionMonitor,
+    scan: Obstacles,
+    overhangs: MapOverhangs,
+    /// Odometry at the last base cycle (to move the obstacles with the base).
+    last_odometry: Option<rmp_base::Odometry>,
+    /// Scans taken in.
+    scans: u64,
 }
 
 /// The executive on the Segway RMP over a CAN bus `B`, as the robot runs it.
@@ -220,7 +241,46 @@ impl<D: BaseDevice, A: ArmDevice> Executive<D, A> {
             next_heartbeat: Duration::ZERO,
             stats: ExecutiveStats::default(),
             loop_stats: grop_clock::rt::LoopStats::new(cycle_period),
+            guard: None,
+            last_verdict: Verdict {
+                twist: Twist::ZERO,
+                action: super::MonitorAction::Stale,
+                clearance_m: f32::NEG_INFINITY,
+                points: 0,
+            },
         })
+    }
+
+    /// Puts the collision monitor, fed by `sensor`, between the core and the base driver, with
+    /// the prior map's overhangs of `scene` (table tops the sensor's rings pass under). From
+    /// then on a silent or out-of-spec sensor stops the base.
+    pub fn set_range_sensor(&mut self, sensor: Box<dyn RangeSensor>, scene: &Scene) {
+        let fp = self.core_config_footprint();
+        self.guard = Some(Guard {
+            sensor,
+            monitor: CollisionMonitor::new(MonitorConfig::for_footprint(fp.0, fp.1)),
+            scan: Obstacles::new(),
+            overhangs: MapOverhangs::of_scene(scene),
+            last_odometry: None,
+            scans: 0,
+        });
+    }
+
+    fn core_config_footprint(&self) -> (f32, f32) {
+        let fp = self.core.footprint();
+        (fp.length_m as f32, fp.width_m as f32)
+    }
+
+    /// What the collision monitor did on the last base cycle.
+    pub fn monitor_verdict(&self) -> Verdict {
+        self.last_verdict
+    }
+
+    /// The range sensor's health, or `None` without one.
+    pub fn range_status(&self, now: Duration) -> Option<String> {
+        self.guard
+            .as_ref()
+            .map(|g| format!("{} ({} scans taken)", g.sensor.status(now), g.scans))
     }
 
     /// The mission state.
@@ -329,7 +389,8 @@ impl<D: BaseDevice, A: ArmDevice> Executive<D, A> {
             answer: self.answer.as_ref(),
             shutdown: false,
             clock_lost: false,
-            monitor: super::MonitorState::Clear,
+            monitor: self.last_verdict.action,
+            sent: self.last_verdict.twist,
             operator_enable: true,
         };
         self.outputs.clear();
@@ -390,6 +451,47 @@ impl<D: BaseDevice, A: ArmDevice> Executive<D, A> {
         }
     }
 
+    /// The collision monitor's pass over the core's velocity (base cycles): a new revolution
+    /// replaces the obstacles (with the map's overhangs at the estimate), otherwise they move
+    /// with the odometry; then the check. Without a sensor the velocity passes unchanged.
+    fn guarded(&mut self, velocity: Twist, now: Duration) -> Twist {
+        let Some(g) = self.guard.as_mut() else {
+            self.last_verdict = Verdict {
+                twist: velocity,
+                action: super::MonitorAction::Clear,
+                clearance_m: f32::INFINITY,
+                points: 0,
+            };
+            return velocity;
+        };
+        let odometry = self.base.odometry();
+        let own = g.monitor.config().own_body();
+        if g.sensor.poll(
+            now,
+            odometry.speed_mps as f32,
+            odometry.yaw_rate_radps as f32,
+            &mut g.scan,
+        ) {
+            g.scans += 1;
+            g.overhangs.add_to(self.core.estimate(), own, &mut g.scan);
+            g.monitor.set_scan(&g.scan);
+        } else if let (Some(before), Some(obstacles)) = (g.last_odometry, g.monitor.obstacles_mut())
+        {
+            // The base moved since the last cycle: the new base pose in the old base frame.
+            let (s, c) = before.yaw_rad.sin_cos();
+            let (dx, dy) = (odometry.x_m - before.x_m, odometry.y_m - before.y_m);
+            obstacles.move_base(Pose2::new(
+                (c * dx + s * dy) as f32,
+                (-s * dx + c * dy) as f32,
+                crate::localisation::wrap(odometry.yaw_rad - before.yaw_rad) as f32,
+            ));
+        }
+        g.last_odometry = Some(odometry);
+        let now_us = u64::try_from(now.as_micros()).unwrap_or(u64::MAX);
+        self.last_verdict = g.monitor.check(velocity, self.outputs.monitor_mode, now_us);
+        self.last_verdict.twist
+    }
+
     /// Write: the arm command, the worker job, the base's mode, velocity and tick (base cycles),
     /// then the messages.
     fn write(&mut self, now: Duration, base_cycle: bool) {
@@ -406,7 +508,8 @@ impl<D: BaseDevice, A: ArmDevice> Executive<D, A> {
         self.write_messages();
         self.publish_arm_state(now);
         if base_cycle {
-            self.base.set_velocity(self.outputs.velocity, now);
+            let velocity = self.guarded(self.outputs.velocity, now);
+            self.base.set_velocity(velocity, now);
             let tick = self.base.tick(now);
             self.publish_base_state(now, &tick);
             self.pending_tick = Some(tick);
