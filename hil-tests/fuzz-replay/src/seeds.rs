@@ -465,7 +465,8 @@ fn robot_file() -> Vec<Vec<u8>> {
 
 fn deployment_file() -> Vec<Vec<u8>> {
     let doc = "namespace = \"robot\"\nmap = \"scene.toml\"\nrobot = \"robot.toml\"\n\
-               model = \"psi-fcn.onnx\"\ncan = \"socketcan:can0\"\nclock = \"wall\"\nseed = 42\n\n\
+               model = \"psi-fcn.onnx\"\ncan = \"socketcan:can0\"\nclock = \"wall\"\nseed = 42\n\
+               lidar = \"udp:0.0.0.0:2368\"\n\n\
                [arm]\nhost = \"192.168.1.10\"\nrtde_port = 30004\ndashboard_port = 29999\n\
                script_port = 30002\ngripper_port = 63352\n\n[planner]\nmethod = \"grop\"\n\
                paper_smp = false\nretry = \"none\"\n";

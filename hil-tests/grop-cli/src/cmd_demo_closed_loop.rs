@@ -67,6 +67,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         progress_s: 0.5,
         log: (!args.no_record).then(|| args.record.clone()),
         fault: args.fault,
+        lidar: true,
     };
     println!(
         "scene {:?}: {} chairs, {} objects; robot at {:.1} m/s, R = {}; method {}",

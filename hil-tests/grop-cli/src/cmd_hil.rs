@@ -64,6 +64,11 @@ pub struct Args {
     #[arg(long, value_name = "I/N")]
     #[serde(default)]
     pub shard: Option<Shard>,
+    /// Do not simulate the range sensor: the executive drives without its collision monitor
+    /// (the behaviour before the lidar, for paired comparisons).
+    #[arg(long)]
+    #[serde(default)]
+    pub no_lidar: bool,
 }
 
 /// One task's results.
@@ -200,6 +205,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                     progress_s: 0.0,
                     log: None,
                     fault: None,
+                    lidar: !args.no_lidar,
                 };
                 let t0 = Instant::now();
                 let result = mission::start(&spec, &bins)
@@ -395,6 +401,7 @@ pub fn merge(set: &[(PathBuf, ShardManifest)], out: &std::path::Path) -> anyhow:
         write_docs: false,
         no_build: true,
         shard: None,
+        no_lidar: c["no_lidar"].as_bool().unwrap_or(false),
     };
     let staged = trial_sim::shard::MergeDir::create(out)?;
     let mut rows = Vec::new();

@@ -194,6 +194,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             progress_s: 0.0,
             log: None,
             fault: None,
+            lidar: true,
         };
         let t0 = Instant::now();
         let outcome = mission::start(&spec, &bins)

@@ -16,6 +16,7 @@
 
 pub mod faults;
 pub mod fixes;
+pub mod lidar;
 pub mod mission;
 pub mod objects;
 pub mod report;
@@ -85,6 +86,8 @@ pub struct WorldConfig {
     pub progress_every: Option<Duration>,
     /// The fault to inject (docs/reliability.md).
     pub fault: Option<FaultSpec>,
+    /// Simulate the robot file's range sensor (the executive's collision monitor needs it).
+    pub lidar: bool,
 }
 
 impl WorldConfig {
@@ -116,6 +119,7 @@ impl WorldConfig {
             linger: Duration::from_secs(2),
             progress_every: None,
             fault: None,
+            lidar: true,
         }
     }
 }
@@ -126,6 +130,9 @@ pub enum WorldError {
     /// The clock.
     #[error("simulated clock: {0}")]
     Clock(#[from] grop_clock::ClockError),
+    /// The range sensor.
+    #[error("simulated lidar: {0}")]
+    Lidar(String),
     /// The CAN bus.
     #[error("virtual CAN bus: {0}")]
     Bus(String),
@@ -180,6 +187,7 @@ pub struct World {
     objects: ObjectTracker,
     fixes: FixSimulator,
     start: BasePose,
+    lidar: Option<lidar::SimLidar>,
     _node: IpcNode,
 }
 
@@ -245,6 +253,14 @@ impl World {
         let targets: Vec<[f64; 3]> = config.scene.targets.iter().map(|t| t.as_array()).collect();
         let objects = ObjectTracker::new(&targets, &config.tray_slots, config.judge);
         let fixes = FixSimulator::new(config.fixes, config.seed);
+        let lidar = if config.lidar {
+            Some(
+                lidar::SimLidar::new(&config.scene, config.robot.lidar, config.seed)
+                    .map_err(|e| WorldError::Lidar(e.to_string()))?,
+            )
+        } else {
+            None
+        };
         let s = config.scene.robot_start;
         let start = BasePose {
             x_m: s.x_m,
@@ -260,8 +276,14 @@ impl World {
             objects,
             fixes,
             start,
+            lidar,
             _node: node,
         })
+    }
+
+    /// The loopback UDP port the simulated VLP-16 sends to (`None`: no sensor simulated).
+    pub fn lidar_port(&self) -> Option<u16> {
+        self.lidar.as_ref().map(lidar::SimLidar::port)
     }
 
     /// Where the simulated UR5e listens.
@@ -416,6 +438,12 @@ impl World {
                 log::warn!("world: sim-ur5e step: {e}");
             }
             let pose = self.base_pose();
+            if let Some(lidar) = self.lidar.as_mut() {
+                // Every packet fired by now, from where the base is (a revolution's packets
+                // spread over its 100 ms: the scan is skewed by the base's motion, as the real
+                // one is).
+                lidar.step(u64::try_from(now.as_micros()).unwrap_or(u64::MAX), pose);
+            }
             let (v, w) = self.base.sim().velocity();
             let speed = f64::from(v).abs() + 0.3 * f64::from(w).abs();
             self.fixes.observe_motion(speed, secs(dt));
@@ -1060,7 +1088,8 @@ pub(crate) fn deployment_for(
          model = {}\n\
          can = \"vcan:{bus}\"\n\
          clock = {clock:?}\n\
-         seed = {}\n\n\
+         seed = {}\n\
+         lidar = {:?}\n\n\
          [arm]\n\
          host = \"127.0.0.1\"\n\
          rtde_port = {}\n\
@@ -1075,6 +1104,10 @@ pub(crate) fn deployment_for(
         quote(robot),
         quote(&spec.model),
         spec.seed,
+        match field("lidar")?.as_str() {
+            "none" => "none".to_owned(),
+            port => format!("udp:127.0.0.1:{port}"),
+        },
         field("rtde")?,
         field("dashboard")?,
         field("secondary")?,

@@ -124,6 +124,9 @@ pub struct MissionSpec {
     pub log: Option<PathBuf>,
     /// A fault for the world to inject (docs/reliability.md).
     pub fault: Option<crate::faults::FaultSpec>,
+    /// Simulate the range sensor (default); `false`: the executive drives without its
+    /// collision monitor, as before the lidar.
+    pub lidar: bool,
 }
 
 static RUNS: AtomicU64 = AtomicU64::new(0);
@@ -414,6 +417,9 @@ pub fn start(spec: &MissionSpec, bins: &Binaries) -> anyhow::Result<RunningMissi
     }
     if let Some(f) = spec.fault {
         world_cmd.args(["--fault", &f.to_string()]);
+    }
+    if !spec.lidar {
+        world_cmd.arg("--no-lidar");
     }
     if spec.log.is_some() {
         world_cmd.args(["--expect", "grop-planner,grop-executive,grop-recorder"]);

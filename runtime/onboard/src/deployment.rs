@@ -11,6 +11,8 @@
 //! can = "socketcan:can0"       # or "vcan:<bus>" (userspace virtual bus on iceoryx2)
 //! clock = "wall"               # or "sim:<name>" (lock-step HIL clock); default "wall"
 //! seed = 42                    # Smp draws and tie-breaks; default 0
+//! lidar = "udp:0.0.0.0:2368"   # the VLP-16's data port, or "none" (no collision monitor:
+//!                              # refused on a real CAN bus); absent: "none" on vcan
 //!
 //! [arm]                        # UR5e controller
 //! host = "192.168.1.10"
@@ -123,6 +125,51 @@ impl std::fmt::Display for CanSpec {
     }
 }
 
+/// Where the range sensor's packets arrive.
+#[derive(Clone, Debug, PartialEq, Eq, Default)]
+pub enum LidarSource {
+    /// No range sensor: the collision monitor is off (HIL and tests that do not simulate one;
+    /// refused with a real CAN bus unless the file says `lidar = "none"` itself).
+    #[default]
+    None,
+    /// A VLP-16's data packets on this UDP address (`host:port`; on the robot
+    /// `0.0.0.0:2368`).
+    Udp(String),
+}
+
+impl LidarSource {
+    /// Parses `none` or `udp:<host>:<port>`.
+    pub fn parse(spec: &str) -> Result<Self, String> {
+        if spec == "none" {
+            return Ok(Self::None);
+        }
+        let addr = spec
+            .strip_prefix("udp:")
+            .ok_or_else(|| format!("{spec:?} is not `none` or `udp:<host>:<port>`"))?;
+        match addr.rsplit_once(':') {
+            Some((host, port))
+                if !host.is_empty()
+                    && !host.contains(char::is_whitespace)
+                    && port.parse::<u16>().is_ok_and(|p| p != 0) =>
+            {
+                Ok(Self::Udp(addr.to_owned()))
+            }
+            _ => Err(format!(
+                "{spec:?}: expected `udp:<host>:<port>` with a port of 1-65535"
+            )),
+        }
+    }
+}
+
+impl std::fmt::Display for LidarSource {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::None => write!(f, "none"),
+            Self::Udp(addr) => write!(f, "udp:{addr}"),
+        }
+    }
+}
+
 /// The UR5e controller's address.
 #[derive(Clone, Debug, PartialEq, Eq, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -231,6 +278,8 @@ pub struct Deployment {
     pub planner: PlannerSettings,
     /// Seed of every random choice of the planner.
     pub seed: u64,
+    /// The range sensor feeding the collision monitor.
+    pub lidar: LidarSource,
 }
 
 /// The file's shape.
@@ -250,6 +299,8 @@ struct DeploymentFile {
     arm: ArmAddress,
     #[serde(default)]
     planner: PlannerFile,
+    #[serde(default)]
+    lidar: Option<String>,
 }
 
 fn default_clock() -> String {
@@ -301,13 +352,28 @@ impl Deployment {
                 )
             })?,
         };
+        let can = CanSpec::parse(&file.can).map_err(|reason| invalid("can", reason))?;
+        let lidar = match file.lidar.as_deref() {
+            Some(spec) => LidarSource::parse(spec).map_err(|reason| invalid("lidar", reason))?,
+            None if matches!(can, CanSpec::SocketCan { .. }) => {
+                return Err(invalid(
+                    "lidar",
+                    "is missing: a base on a real CAN bus drives only with its range sensor \
+                     (lidar = \"udp:0.0.0.0:2368\"); say lidar = \"none\" to drive without \
+                     the collision monitor"
+                        .to_owned(),
+                ));
+            }
+            None => LidarSource::None,
+        };
         let deployment = Self {
+            lidar,
             source: path.to_owned(),
             namespace: file.namespace,
             map: resolve(file.map),
             robot: file.robot.map(resolve),
             model: resolve(file.model),
-            can: CanSpec::parse(&file.can).map_err(|reason| invalid("can", reason))?,
+            can,
             arm: file.arm,
             clock: file.clock,
             planner: PlannerSettings {
@@ -338,6 +404,7 @@ impl Deployment {
             clock: default_clock(),
             planner: PlannerSettings::default(),
             seed: 0,
+            lidar: LidarSource::None,
         }
     }
 
@@ -441,6 +508,7 @@ model = "../models/psi-fcn.onnx"
 can = "socketcan:can0"
 clock = "sim:hil-1"
 seed = 42
+lidar = "udp:0.0.0.0:2368"
 
 [arm]
 host = "192.168.1.10"
@@ -475,6 +543,26 @@ retry = "replan"
         assert_eq!(d.planner.method, MethodKind::FcnPlanning);
         assert!(d.planner.paper_smp);
         assert_eq!(d.planner.retry, RetryPolicy::Replan);
+        assert_eq!(d.lidar, LidarSource::Udp("0.0.0.0:2368".into()));
+    }
+
+    #[test]
+    fn a_real_can_bus_needs_a_range_sensor_or_says_none() {
+        let without = FULL.replace("lidar = \"udp:0.0.0.0:2368\"\n", "");
+        assert_ne!(without, FULL);
+        let message = parse(&without).unwrap_err().to_string();
+        assert!(
+            message.contains("`lidar`") && message.contains("range sensor"),
+            "{message}"
+        );
+        let blind = FULL.replace("udp:0.0.0.0:2368", "none");
+        assert_eq!(parse(&blind).unwrap().lidar, LidarSource::None);
+        for bad in ["udp:2368", "udp:host:0", "tcp:a:1", "udp: :5"] {
+            let message = parse(&FULL.replace("udp:0.0.0.0:2368", bad))
+                .unwrap_err()
+                .to_string();
+            assert!(message.contains("`lidar`"), "{bad}: {message}");
+        }
     }
 
     #[test]

@@ -51,6 +51,10 @@ struct Args {
     /// Where to write the report (JSON).
     #[arg(long)]
     report: Option<PathBuf>,
+    /// Do not simulate the range sensor (the executive then drives without its collision
+    /// monitor: the behaviour before the lidar, for comparisons).
+    #[arg(long)]
+    no_lidar: bool,
 }
 
 static STOP: AtomicBool = AtomicBool::new(false);
@@ -100,18 +104,22 @@ fn main() -> anyhow::Result<()> {
         .map(str::to_owned)
         .collect();
     config.fault = args.fault;
+    config.lidar = !args.no_lidar;
     let mut world = World::new(config).context("starting the world")?;
     let ports = world.arm_ports();
     let c = world.config();
     println!(
-        "grop-world ready clock=sim:{} namespace={} bus={} rtde={} dashboard={} secondary={} gripper={}",
+        "grop-world ready clock=sim:{} namespace={} bus={} rtde={} dashboard={} secondary={} gripper={} lidar={}",
         c.clock_name,
         c.namespace,
         c.bus_name,
         ports.rtde,
         ports.dashboard,
         ports.secondary,
-        ports.gripper
+        ports.gripper,
+        world
+            .lidar_port()
+            .map_or_else(|| "none".to_owned(), |p| p.to_string())
     );
     std::io::stdout().flush().context("flushing stdout")?;
     let report = world.run(&|| STOP.load(Ordering::Relaxed));

@@ -29,5 +29,6 @@ pub fn spec(test: &str, seed: u64) -> MissionSpec {
         progress_s: 0.1,
         log: None,
         fault: None,
+        lidar: true,
     }
 }

@@ -12,8 +12,9 @@ use std::time::Duration;
 use anyhow::Context;
 use can_bus::{CanBus, SocketCanBus, VirtualCanBus};
 use clap::Parser;
-use grop_onboard::deployment::CanSpec;
+use grop_onboard::deployment::{CanSpec, LidarSource};
 use grop_onboard::executive::arm_io::RecordingArm;
+use grop_onboard::executive::range::Vlp16Sensor;
 use grop_onboard::executive::ur5e_arm::{ArmMotionSettings, Ur5eDevice};
 use grop_onboard::executive::{Executive, ExecutiveConfig, MissionState};
 
@@ -94,10 +95,22 @@ fn main() -> anyhow::Result<()> {
         bus,
         arm,
         &node,
-        scene,
+        scene.clone(),
         objects,
     )
     .context("starting the executive")?;
+    match &deployment.lidar {
+        LidarSource::Udp(addr) => {
+            let sensor = Vlp16Sensor::bind(addr, &robot.lidar, robot.footprint.body_height_m)?;
+            executive.set_range_sensor(Box::new(sensor), &scene);
+            log::info!("grop-executive: collision monitor on the VLP-16 at udp:{addr}");
+        }
+        LidarSource::None => {
+            log::warn!(
+                "grop-executive: no range sensor (lidar = none): the collision monitor is off"
+            )
+        }
+    }
     log::info!(
         "grop-executive: namespace `{}`, clock {}, CAN {}, arm {}:{}",
         deployment.namespace,

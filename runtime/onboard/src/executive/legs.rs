@@ -20,8 +20,21 @@ pub const MAX_FAILED_LEGS: u32 = 3;
 /// Backing-out speed from the table, m/s.
 pub const REVERSE_SPEED_MPS: f32 = 0.15;
 
-/// Docking / back-out distances tried, longest first, m.
-pub const DOCKING_DISTANCES_M: [f64; 3] = [0.45, 0.3, 0.15];
+/// Docking / back-out distances tried, longest first, m: the base turns at the pre-goal this
+/// far behind a table goal, then drives straight in.
+pub const DOCKING_DISTANCES_M: [f64; 5] = [1.0, 0.75, 0.45, 0.3, 0.15];
+
+/// The last this many metres to a docking goal (and the first ones backing out) use the
+/// collision monitor's docking shape at crawl speed.
+pub const DOCKING_SHAPE_RANGE_M: f64 = 0.5;
+
+/// Margin around the footprint for the straight docking line at the goal's heading (m): the
+/// monitor's docking shape.
+pub const DOCKING_LINE_MARGIN_M: f64 = 0.02;
+
+/// Margin around the footprint for turning in place at a pre-goal (m): the monitor's stop zone
+/// plus a few centimetres of localisation error.
+pub const TURN_MARGIN_M: f64 = 0.08;
 
 /// How long the worker may take for a path.
 const PATH_ANSWER_TIMEOUT: Duration = Duration::from_secs(5);
@@ -130,8 +143,8 @@ impl MissionCore {
                     ];
                     match self.follower.set_path(&points) {
                         Ok(()) => {
-                            // The last metres: the collision monitor's docking shape.
-                            self.docking = true;
+                            // The last metres use the collision monitor's docking shape.
+                            self.dock_goal = Some([goal[0], goal[1]]);
                             Some(Phase::Following {
                                 deadline: self.leg_deadline(step, pose, now),
                             })
@@ -141,7 +154,7 @@ impl MissionCore {
                 }
                 None => {
                     self.failed_legs = 0;
-                    self.docking = false;
+                    self.dock_goal = None;
                     let err = pose.distance_m(&PlanarPose::new(step.x_m, step.y_m, 0.0));
                     self.event(
                         EventKind::GoalReached,
@@ -180,8 +193,6 @@ impl MissionCore {
                 .find(|d| self.grid.is_free((pose.x_m - c * d, pose.y_m - s * d)))
                 .unwrap_or(0.0);
             if distance_m > 0.0 {
-                // Backing out of the standing spot: the same tight stretch as docking.
-                self.docking = true;
                 return Phase::Reversing {
                     start: pose,
                     distance_m,
@@ -205,29 +216,17 @@ impl MissionCore {
     ) -> Phase {
         let id = self.next_job_id;
         self.next_job_id += 1;
-        self.docking = false;
+        self.dock_goal = None;
         let mut to = (step.x_m, step.y_m);
         self.dock = None;
         let unload_next = self
             .steps
             .get(self.step_index + 1)
             .is_some_and(|n| n.kind() == Ok(TaskStepKind::Unload));
-        if unload_next {
+        if unload_next && let Some(d) = self.docking_distance(step) {
             let (s, c) = step.yaw_rad.sin_cos();
-            let straight_free = |d: f64| {
-                (0..=((d / 0.05).ceil() as usize)).all(|k| {
-                    let t = (k as f64 * 0.05).min(d);
-                    self.grid.is_free((step.x_m - c * t, step.y_m - s * t))
-                })
-            };
-            if let Some(d) = DOCKING_DISTANCES_M
-                .iter()
-                .copied()
-                .find(|d| straight_free(*d))
-            {
-                to = (step.x_m - c * d, step.y_m - s * d);
-                self.dock = Some([step.x_m, step.y_m, step.yaw_rad]);
-            }
+            to = (step.x_m - c * d, step.y_m - s * d);
+            self.dock = Some([step.x_m, step.y_m, step.yaw_rad]);
         }
         outputs.job = Some(Job::Path {
             id,
@@ -235,6 +234,48 @@ impl MissionCore {
             to,
         });
         Phase::PathRequested { id, since: now }
+    }
+
+    /// How far behind a table goal the base turns before it docks: the longest of
+    /// [`DOCKING_DISTANCES_M`] whose straight line to the goal is free for the footprint at the
+    /// goal's heading (with [`DOCKING_LINE_MARGIN_M`]) and where a turn in place is free (with
+    /// [`TURN_MARGIN_M`], every 15 degrees); failing that, the longest free line.
+    fn docking_distance(&self, step: &TaskStep) -> Option<f64> {
+        let (s, c) = step.yaw_rad.sin_cos();
+        let at = |d: f64, yaw: f64, robot: &world::RobotConfig| {
+            !world::base_collides(
+                &self.scene,
+                robot,
+                world::BasePose {
+                    x_m: step.x_m - c * d,
+                    y_m: step.y_m - s * d,
+                    yaw_rad: yaw,
+                },
+            )
+        };
+        let line_free = |d: f64| {
+            (0..=((d / 0.05).ceil() as usize))
+                .all(|k| at((k as f64 * 0.05).min(d), step.yaw_rad, &self.line_robot))
+        };
+        let turn_free = |d: f64| {
+            (0..12).all(|k| {
+                at(
+                    d,
+                    step.yaw_rad + f64::from(k) * std::f64::consts::PI / 12.0,
+                    &self.turn_robot,
+                )
+            })
+        };
+        let lines: heapless::Vec<f64, 5> = DOCKING_DISTANCES_M
+            .iter()
+            .copied()
+            .filter(|d| line_free(*d))
+            .collect();
+        lines
+            .iter()
+            .copied()
+            .find(|d| turn_free(*d))
+            .or_else(|| lines.first().copied())
     }
 
     /// When a leg must have ended: the factor times its planned (or straight-line) travel time,
@@ -257,7 +298,7 @@ impl MissionCore {
         why: &str,
         outputs: &mut CycleOutputs,
     ) -> Option<Phase> {
-        self.docking = false;
+        self.dock_goal = None;
         self.velocity = Twist::ZERO;
         self.event(
             EventKind::LegFinished,

@@ -63,6 +63,18 @@ pub struct CoreStats {
     pub stalls: u32,
 }
 
+/// A hold of the collision monitor is reported once it lasts this long (shorter ones are the
+/// approach check easing the base past something).
+const HOLD_REPORT_AFTER: Duration = Duration::from_millis(500);
+
+/// `robot` with its footprint grown by `margin_m` on every side.
+fn grown(robot: &world::RobotConfig, margin_m: f64) -> world::RobotConfig {
+    let mut r = robot.clone();
+    r.footprint.length_m += 2.0 * margin_m;
+    r.footprint.width_m += 2.0 * margin_m;
+    r
+}
+
 /// Step progress.
 #[derive(Debug, Clone)]
 pub(super) enum Phase {
@@ -182,10 +194,18 @@ pub struct MissionCore {
     global_fix_received: Option<Duration>,
     /// Fixes refused for a stamp in the future.
     future_fixes: u64,
-    /// On the docking stretch of a leg (the monitor's docking shape).
-    pub(super) docking: bool,
-    /// Since when the collision monitor has held the base (stop zone or stale scan).
+    /// The goal of the docking stretch being driven (the monitor's docking shape near it).
+    pub(super) dock_goal: Option<[f64; 2]>,
+    /// The scene (static map) for footprint checks at a true heading.
+    pub(super) scene: Arc<world::Scene>,
+    /// The robot with its footprint grown by the docking line's margin.
+    pub(super) line_robot: world::RobotConfig,
+    /// The robot with its footprint grown by the turning margin.
+    pub(super) turn_robot: world::RobotConfig,
+    /// Since when the collision monitor has held the base (motion asked, none let through).
     monitor_hold_since: Option<Duration>,
+    /// The hold was reported.
+    hold_reported: bool,
     /// Since when motion is sent and none measured.
     stall_since: Option<Duration>,
     pub(super) stats: CoreStats,
@@ -197,9 +217,12 @@ impl MissionCore {
     pub fn new(
         config: ExecutiveConfig,
         grid: Arc<OccupancyGrid>,
+        scene: Arc<world::Scene>,
         tray: TrayGeometry,
         objects: usize,
     ) -> Self {
+        let line_robot = grown(&config.robot, super::legs::DOCKING_LINE_MARGIN_M);
+        let turn_robot = grown(&config.robot, super::legs::TURN_MARGIN_M);
         let remaining = if objects >= 64 {
             u64::MAX
         } else {
@@ -238,8 +261,12 @@ impl MissionCore {
             event_seq: 0,
             global_fix_received: None,
             future_fixes: 0,
-            docking: false,
+            dock_goal: None,
+            line_robot,
+            turn_robot,
+            scene,
             monitor_hold_since: None,
+            hold_reported: false,
             stall_since: None,
             stats: CoreStats::default(),
         }
@@ -292,11 +319,25 @@ impl MissionCore {
             self.base_loop(inputs, outputs);
         }
         outputs.velocity = self.velocity;
-        outputs.monitor_mode = if self.docking {
+        outputs.monitor_mode = if self.docking() {
             MonitorMode::Docking
         } else {
             MonitorMode::Normal
         };
+    }
+
+    /// On the tight stretch next to a standing spot: the last metres of a docking, the first
+    /// ones backing out.
+    fn docking(&self) -> bool {
+        let here = self.localiser.estimate();
+        let near = |xy: [f64; 2]| {
+            (xy[0] - here.x_m).hypot(xy[1] - here.y_m) <= super::legs::DOCKING_SHAPE_RANGE_M
+        };
+        match (&self.phase, self.dock_goal) {
+            (Some(Phase::Following { .. }), Some(goal)) => near(goal),
+            (Some(Phase::Reversing { start, .. }), _) => near([start.x_m, start.y_m]),
+            _ => false,
+        }
     }
 
     /// The collision monitor's holds and stalls: reported when they start and end; a hold that
@@ -304,17 +345,25 @@ impl MissionCore {
     /// base pushes against something), fails the leg, which is then planned again from here.
     fn watch_motion(&mut self, inputs: &CycleInputs<'_>, outputs: &mut CycleOutputs) {
         let now = inputs.now;
-        let holding = matches!(inputs.monitor, MonitorAction::Stop | MonitorAction::Stale);
+        // Held: the core asks for motion and the monitor lets (almost) none through.
+        let asked =
+            self.velocity.speed_mps.abs() >= 0.01 || self.velocity.yaw_rate_radps.abs() >= 0.02;
+        let let_through =
+            inputs.sent.speed_mps.abs() >= 0.02 || inputs.sent.yaw_rate_radps.abs() >= 0.05;
+        let holding = (asked && !let_through)
+            || matches!(inputs.monitor, MonitorAction::Stop | MonitorAction::Stale)
+                && self.monitor_hold_since.is_some();
         match (holding, self.monitor_hold_since) {
-            (true, None) => {
-                self.monitor_hold_since = Some(now);
-                let why = if inputs.monitor == MonitorAction::Stale {
-                    "no fresh scan"
-                } else {
-                    "an obstacle in the stop zone"
-                };
-                self.stats.monitor_holds += 1;
-                if matches!(self.state, MissionState::Running) && self.velocity != Twist::ZERO {
+            (true, None) => self.monitor_hold_since = Some(now),
+            (true, Some(since)) => {
+                if !self.hold_reported && now.saturating_sub(since) >= HOLD_REPORT_AFTER {
+                    self.hold_reported = true;
+                    self.stats.monitor_holds += 1;
+                    let why = match inputs.monitor {
+                        MonitorAction::Stale => "no fresh scan",
+                        MonitorAction::Stop => "an obstacle in the stop zone",
+                        _ => "an obstacle ahead",
+                    };
                     self.event(
                         EventKind::Obstacle,
                         now,
@@ -325,7 +374,9 @@ impl MissionCore {
             }
             (false, Some(since)) => {
                 self.monitor_hold_since = None;
-                if matches!(self.state, MissionState::Running) {
+                if std::mem::take(&mut self.hold_reported)
+                    && matches!(self.state, MissionState::Running)
+                {
                     self.event(
                         EventKind::Obstacle,
                         now,
@@ -337,7 +388,7 @@ impl MissionCore {
                     );
                 }
             }
-            _ => {}
+            (false, None) => {}
         }
         let sent = inputs.sent;
         let measured = inputs.base.odometry;
@@ -372,7 +423,7 @@ impl MissionCore {
             self.stall_since = None;
         }
         if let Some(since) = self.monitor_hold_since {
-            let limit = if self.docking {
+            let limit = if self.docking() {
                 self.config.docking_blocked_timeout
             } else {
                 self.config.blocked_timeout
@@ -388,7 +439,7 @@ impl MissionCore {
             {
                 // Counted again from now: the new leg gets its own time.
                 self.monitor_hold_since = Some(now);
-                let what = if self.docking {
+                let what = if self.docking() {
                     "the standing spot is taken (the scan sees something there)"
                 } else {
                     "blocked by an obstacle the scan sees"

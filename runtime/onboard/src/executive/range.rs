@@ -125,3 +125,146 @@ mod tests {
         assert!(far.is_empty());
     }
 }
+
+/// The Velodyne VLP-16 over UDP (the robot's sensor; in HIL the world's simulated one on
+/// loopback): decodes the packets, checks the sensor's health, assembles revolutions, deskews
+/// them under the base's velocity and keeps the returns between [`FLOOR_FILTER_M`] and the
+/// body's height.
+pub struct Vlp16Sensor {
+    source: vlp16::udp::UdpSource,
+    health: vlp16::health::Health,
+    assembler: vlp16::scan::ScanAssembler,
+    /// Returns above this are over the robot (m).
+    body_height_m: f32,
+    /// A revolution completed since the last poll.
+    fresh: bool,
+    /// The last revolution's returns the monitor keeps (preallocated).
+    kept: Vec<vlp16::scan::Point>,
+    io_errors: u64,
+}
+
+/// Why the VLP-16 could not be opened.
+#[derive(Debug, thiserror::Error)]
+pub enum SensorError {
+    /// The UDP port could not be bound.
+    #[error("lidar: cannot listen on {addr}: {source}")]
+    Bind {
+        /// The address.
+        addr: String,
+        /// The socket error.
+        source: std::io::Error,
+    },
+    /// The robot file's sensor does not make a valid configuration.
+    #[error("lidar: the robot file's [lidar] section: {0}")]
+    Config(String),
+}
+
+impl Vlp16Sensor {
+    /// Listens on `addr` (`host:port`) for the sensor the robot file describes (`spec`, at the
+    /// base's body height `body_height_m`).
+    pub fn bind(
+        addr: &str,
+        spec: &world::LidarSpec,
+        body_height_m: f64,
+    ) -> Result<Self, SensorError> {
+        let source = vlp16::udp::UdpSource::bind(addr).map_err(|source| SensorError::Bind {
+            addr: addr.to_owned(),
+            source,
+        })?;
+        let calib = vlp16::calib::Calibration {
+            min_range_m: spec.min_range_m,
+            max_range_m: spec.max_range_m,
+            ..vlp16::calib::Calibration::VLP16
+        };
+        let mount = vlp16::Mount {
+            x_m: spec.mount.x_m,
+            y_m: spec.mount.y_m,
+            z_m: spec.mount.z_m,
+            yaw_rad: spec.mount.yaw_rad,
+        };
+        let assembler = vlp16::scan::ScanAssembler::new(calib, mount, &[], 32_768)
+            .map_err(|e| SensorError::Config(e.to_string()))?;
+        let health = vlp16::health::Health::new(vlp16::health::HealthConfig {
+            nominal_rpm: spec.rpm,
+            ..vlp16::health::HealthConfig::default()
+        });
+        Ok(Self {
+            source,
+            health,
+            assembler,
+            body_height_m: body_height_m as f32,
+            fresh: false,
+            kept: Vec::with_capacity(32_768),
+            io_errors: 0,
+        })
+    }
+
+    /// The address it listens on.
+    pub fn local_addr(&self) -> Option<std::net::SocketAddr> {
+        self.source.local_addr().ok()
+    }
+}
+
+impl RangeSensor for Vlp16Sensor {
+    fn poll(
+        &mut self,
+        now: Duration,
+        speed_mps: f32,
+        yaw_rate_radps: f32,
+        out: &mut Obstacles,
+    ) -> bool {
+        let now_ns = u64::try_from(now.as_nanos()).unwrap_or(u64::MAX);
+        let (health, assembler, fresh) = (&mut self.health, &mut self.assembler, &mut self.fresh);
+        let drained = self.source.drain(|packet| match packet {
+            Ok(p) => {
+                health.on_packet(&p, now_ns);
+                if assembler.push(&p, now_ns).is_some() {
+                    *fresh = true;
+                }
+            }
+            Err(e) => health.on_error(&e, now_ns),
+        });
+        if drained.is_err() {
+            self.io_errors += 1;
+        }
+        if !self.health.verdict(now_ns).is_ok() || !std::mem::take(&mut self.fresh) {
+            return false;
+        }
+        let Some(done) = self.assembler.last_done() else {
+            return false;
+        };
+        let now_us = u64::try_from(now.as_micros()).unwrap_or(u64::MAX);
+        out.clear(now_us);
+        // The returns between the floor and the body's height, deskewed into the base frame at
+        // the revolution's end (the base having moved on at its velocity since each firing).
+        self.kept.clear();
+        self.kept.extend(
+            self.assembler
+                .points()
+                .iter()
+                .filter(|p| p.z >= FLOOR_FILTER_M && p.z <= self.body_height_m),
+        );
+        vlp16::scan::deskew(
+            &mut self.kept,
+            f64::from(speed_mps),
+            f64::from(yaw_rate_radps),
+            done.end_us,
+        );
+        for p in &self.kept {
+            out.add(p.x, p.y, [0.0, 0.0]);
+        }
+        true
+    }
+
+    fn status(&self, now: Duration) -> String {
+        let now_ns = u64::try_from(now.as_nanos()).unwrap_or(u64::MAX);
+        let s = self.health.stats();
+        format!(
+            "vlp16 {:?}: {} packets, rpm {:?}, {} socket errors",
+            self.health.verdict(now_ns),
+            s.packets,
+            s.rpm,
+            self.io_errors
+        )
+    }
+}

@@ -215,7 +215,7 @@ impl<D: BaseDevice, A: ArmDevice> Executive<D, A> {
         let (cycle_period, base_every, heartbeat_period) =
             (config.cycle, config.base_every, config.heartbeat_period);
         Ok(Self {
-            core: MissionCore::new(config, grid, tray, objects),
+            core: MissionCore::new(config, grid, Arc::new(scene), tray, objects),
             cycle_period,
             base_every,
             heartbeat_period,
@@ -488,8 +488,38 @@ impl<D: BaseDevice, A: ArmDevice> Executive<D, A> {
         }
         g.last_odometry = Some(odometry);
         let now_us = u64::try_from(now.as_micros()).unwrap_or(u64::MAX);
-        self.last_verdict = g.monitor.check(velocity, self.outputs.monitor_mode, now_us);
-        self.last_verdict.twist
+        let verdict = g.monitor.check(velocity, self.outputs.monitor_mode, now_us);
+        if verdict.action != self.last_verdict.action && log::log_enabled!(log::Level::Debug) {
+            let fp = g.monitor.config();
+            let nearest = g.monitor.obstacles().and_then(|o| {
+                o.iter().min_by(|a, b| {
+                    let d = |p: &[f32; 2]| {
+                        motion_control::collision::signed_distance(
+                            p[0],
+                            p[1],
+                            fp.half_length_m,
+                            fp.half_width_m,
+                        )
+                    };
+                    d(a).total_cmp(&d(b))
+                })
+            });
+            log::debug!(
+                "monitor at {:.3} s: {:?} -> {:?} ({:?} mode), command {:?} -> {:?}, clearance {:.3} m, {} points, nearest {:?} (base frame), estimate {:?}",
+                now.as_secs_f64(),
+                self.last_verdict.action,
+                verdict.action,
+                self.outputs.monitor_mode,
+                velocity,
+                verdict.twist,
+                verdict.clearance_m,
+                verdict.points,
+                nearest,
+                self.core.estimate()
+            );
+        }
+        self.last_verdict = verdict;
+        verdict.twist
     }
 
     /// Write: the arm command, the worker job, the base's mode, velocity and tick (base cycles),
