@@ -180,19 +180,19 @@ pub struct MonitorConfig {
 }
 
 impl MonitorConfig {
-    /// The defaults for a footprint of `length_m` x `width_m`: a 5 cm stop zone, a 25 cm
-    /// slowdown zone at half speed, 1.0 s before collision, a 2 cm docking shape at 8 cm/s (0.25 s before collision), two
+    /// The defaults for a footprint of `length_m` x `width_m`: a 2 cm stop zone, a 15 cm
+    /// slowdown zone at half speed, 1.0 s before collision, a 1 cm docking shape at 8 cm/s (0.25 s before collision), two
     /// bearings, a 250 ms scan timeout (two and a half revolutions at 10 Hz).
     pub fn for_footprint(length_m: f32, width_m: f32) -> Self {
         Self {
             half_length_m: 0.5 * length_m,
             half_width_m: 0.5 * width_m,
-            stop_margin_m: 0.05,
-            slowdown_margin_m: 0.25,
+            stop_margin_m: 0.02,
+            slowdown_margin_m: 0.15,
             slowdown_ratio: 0.5,
             time_before_collision_s: 1.0,
             simulation_step_s: 0.05,
-            docking_margin_m: 0.02,
+            docking_margin_m: 0.01,
             docking_speed_mps: 0.08,
             docking_yaw_rate_radps: 0.3,
             docking_time_before_collision_s: 0.25,
@@ -494,11 +494,11 @@ mod tests {
 
     #[test]
     fn a_point_in_the_stop_zone_stops_motion_toward_it_and_lets_the_base_back_away() {
-        // Footprint front at 0.30 m; wall at 0.33 m: inside the 5 cm stop zone.
-        let m = monitor_with(&wall_at(0.33));
+        // Footprint front at 0.30 m; wall at 0.315 m: inside the 2 cm stop zone.
+        let m = monitor_with(&wall_at(0.315));
         let v = m.check(Twist::new(0.3, 0.0), MonitorMode::Normal, NOW);
         assert_eq!((v.twist, v.action), (Twist::ZERO, Action::Stop));
-        assert!((v.clearance_m - 0.03).abs() < 1e-4, "{v:?}");
+        assert!((v.clearance_m - 0.015).abs() < 1e-4, "{v:?}");
         // Backing away is allowed at crawl speed.
         let v = m.check(Twist::new(-0.3, 0.0), MonitorMode::Normal, NOW);
         assert_eq!(v.action, Action::Crawl);
@@ -512,20 +512,20 @@ mod tests {
 
     #[test]
     fn one_noisy_return_does_not_stop_the_base() {
-        let m = monitor_with(&[[0.32, 0.0]]);
+        let m = monitor_with(&[[0.31, 0.0]]);
         let v = m.check(Twist::new(0.2, 0.0), MonitorMode::Normal, NOW);
         assert_ne!(v.action, Action::Stop);
     }
 
     #[test]
     fn the_slowdown_zone_scales_and_the_approach_check_slows_before_contact() {
-        // Wall 0.2 m ahead of the front: slowdown zone (0.05..0.25).
-        let m = monitor_with(&wall_at(0.5));
+        // Wall 0.1 m ahead of the front: slowdown zone (0.02..0.15).
+        let m = monitor_with(&wall_at(0.4));
         let v = m.check(Twist::new(0.1, 0.0), MonitorMode::Normal, NOW);
         assert!(v.action >= Action::Slowdown, "{v:?}");
         assert!(v.twist.speed_mps <= 0.05 + 1e-6, "{v:?}");
-        // Wall 0.5 m ahead of the front at 0.4 m/s: the stop zone is 0.45 m away, about 1.1 s:
-        // clear; at 0.8 m/s it would be reached in ~0.56 s: scaled.
+        // Wall 0.5 m ahead of the front at 0.4 m/s: the stop zone is 0.48 m away, 1.2 s: clear;
+        // at 0.8 m/s it would be reached in 0.6 s: scaled.
         let m = monitor_with(&wall_at(0.8));
         let v = m.check(Twist::new(0.8, 0.0), MonitorMode::Normal, NOW);
         assert_eq!(v.action, Action::Approach, "{v:?}");
@@ -549,13 +549,21 @@ mod tests {
 
     #[test]
     fn docking_uses_the_reduced_shape_at_crawl_speed() {
-        // 3 cm ahead: a stop in normal mode; docking may still close in (slowing as it nears
-        // the 2 cm shape).
-        let m = monitor_with(&wall_at(0.33));
+        // 1.5 cm ahead: a stop in normal mode; docking may still close in (slowing as it
+        // nears the 1 cm shape).
+        let m = monitor_with(&wall_at(0.315));
+        assert_eq!(
+            m.check(Twist::new(0.05, 0.0), MonitorMode::Normal, NOW)
+                .action,
+            Action::Stop
+        );
         let v = m.check(Twist::new(0.05, 0.0), MonitorMode::Docking, NOW);
-        assert!(v.action < Action::Stop && v.twist.speed_mps > 0.02, "{v:?}");
-        // 1 cm: inside the docking shape too.
-        let m = monitor_with(&wall_at(0.31));
+        assert!(
+            v.action < Action::Stop && v.twist.speed_mps > 0.005,
+            "{v:?}"
+        );
+        // 0.5 cm: inside the docking shape too.
+        let m = monitor_with(&wall_at(0.305));
         let v = m.check(Twist::new(0.05, 0.0), MonitorMode::Docking, NOW);
         assert_eq!(v.action, Action::Stop);
         // Docking caps the speed even with nothing near.

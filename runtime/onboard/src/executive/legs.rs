@@ -30,11 +30,11 @@ pub const DOCKING_SHAPE_RANGE_M: f64 = 0.5;
 
 /// Margin around the footprint for the straight docking line at the goal's heading (m): the
 /// monitor's docking shape.
-pub const DOCKING_LINE_MARGIN_M: f64 = 0.02;
+pub const DOCKING_LINE_MARGIN_M: f64 = 0.01;
 
 /// Margin around the footprint for turning in place at a pre-goal (m): the monitor's stop zone
 /// plus a few centimetres of localisation error.
-pub const TURN_MARGIN_M: f64 = 0.08;
+pub const TURN_MARGIN_M: f64 = 0.06;
 
 /// How long the worker may take for a path.
 const PATH_ANSWER_TIMEOUT: Duration = Duration::from_secs(5);
@@ -186,11 +186,9 @@ impl MissionCore {
         if std::mem::take(&mut self.at_table) {
             // Straight back, away from the table, as far as the map allows (up to the docking
             // distance): turning in place next to the table would sweep the footprint into it.
-            let (s, c) = pose.yaw_rad.sin_cos();
-            let distance_m = DOCKING_DISTANCES_M
-                .iter()
-                .copied()
-                .find(|d| self.grid.is_free((pose.x_m - c * d, pose.y_m - s * d)))
+            // The same rule as docking's: straight back to where a turn in place is free.
+            let distance_m = self
+                .free_stretch(pose.x_m, pose.y_m, pose.yaw_rad)
                 .unwrap_or(0.0);
             if distance_m > 0.0 {
                 return Phase::Reversing {
@@ -223,7 +221,7 @@ impl MissionCore {
             .steps
             .get(self.step_index + 1)
             .is_some_and(|n| n.kind() == Ok(TaskStepKind::Unload));
-        if unload_next && let Some(d) = self.docking_distance(step) {
+        if unload_next && let Some(d) = self.free_stretch(step.x_m, step.y_m, step.yaw_rad) {
             let (s, c) = step.yaw_rad.sin_cos();
             to = (step.x_m - c * d, step.y_m - s * d);
             self.dock = Some([step.x_m, step.y_m, step.yaw_rad]);
@@ -236,32 +234,34 @@ impl MissionCore {
         Phase::PathRequested { id, since: now }
     }
 
-    /// How far behind a table goal the base turns before it docks: the longest of
-    /// [`DOCKING_DISTANCES_M`] whose straight line to the goal is free for the footprint at the
-    /// goal's heading (with [`DOCKING_LINE_MARGIN_M`]) and where a turn in place is free (with
-    /// [`TURN_MARGIN_M`], every 15 degrees); failing that, the longest free line.
-    fn docking_distance(&self, step: &TaskStep) -> Option<f64> {
-        let (s, c) = step.yaw_rad.sin_cos();
-        let at = |d: f64, yaw: f64, robot: &world::RobotConfig| {
+    /// How far behind the pose (`x`, `y`, `yaw`) the base can stand and still drive straight
+    /// to it: the longest of [`DOCKING_DISTANCES_M`] whose straight line is free for the
+    /// footprint at `yaw` (with [`DOCKING_LINE_MARGIN_M`]) and where a turn in place is free
+    /// (with [`TURN_MARGIN_M`], every 15 degrees); failing that, the longest free line. The
+    /// pre-goal of a docking (behind a table goal) and the end of a back-out (behind the base
+    /// at the table).
+    fn free_stretch(&self, x: f64, y: f64, yaw: f64) -> Option<f64> {
+        let (s, c) = yaw.sin_cos();
+        let at = |d: f64, heading: f64, robot: &world::RobotConfig| {
             !world::base_collides(
                 &self.scene,
                 robot,
                 world::BasePose {
-                    x_m: step.x_m - c * d,
-                    y_m: step.y_m - s * d,
-                    yaw_rad: yaw,
+                    x_m: x - c * d,
+                    y_m: y - s * d,
+                    yaw_rad: heading,
                 },
             )
         };
         let line_free = |d: f64| {
             (0..=((d / 0.05).ceil() as usize))
-                .all(|k| at((k as f64 * 0.05).min(d), step.yaw_rad, &self.line_robot))
+                .all(|k| at((k as f64 * 0.05).min(d), yaw, &self.line_robot))
         };
         let turn_free = |d: f64| {
             (0..12).all(|k| {
                 at(
                     d,
-                    step.yaw_rad + f64::from(k) * std::f64::consts::PI / 12.0,
+                    yaw + f64::from(k) * std::f64::consts::PI / 12.0,
                     &self.turn_robot,
                 )
             })

@@ -67,6 +67,9 @@ pub struct CoreStats {
 /// approach check easing the base past something).
 const HOLD_REPORT_AFTER: Duration = Duration::from_millis(500);
 
+/// A turn in place held this long goes the other way round.
+const TURN_FLIP_AFTER: Duration = Duration::from_secs(1);
+
 /// `robot` with its footprint grown by `margin_m` on every side.
 fn grown(robot: &world::RobotConfig, margin_m: f64) -> world::RobotConfig {
     let mut r = robot.clone();
@@ -206,6 +209,9 @@ pub struct MissionCore {
     monitor_hold_since: Option<Duration>,
     /// The hold was reported.
     hold_reported: bool,
+    /// A turn in place the monitor held goes the other way round (the sign of the yaw rate)
+    /// until the base drives on.
+    forced_turn: Option<f32>,
     /// Since when motion is sent and none measured.
     stall_since: Option<Duration>,
     pub(super) stats: CoreStats,
@@ -267,6 +273,7 @@ impl MissionCore {
             scene,
             monitor_hold_since: None,
             hold_reported: false,
+            forced_turn: None,
             stall_since: None,
             stats: CoreStats::default(),
         }
@@ -317,6 +324,7 @@ impl MissionCore {
         if inputs.base_cycle {
             self.watch_motion(inputs, outputs);
             self.base_loop(inputs, outputs);
+            self.turn_the_other_way();
         }
         outputs.velocity = self.velocity;
         outputs.monitor_mode = if self.docking() {
@@ -324,6 +332,20 @@ impl MissionCore {
         } else {
             MonitorMode::Normal
         };
+    }
+
+    /// A turn in place held by the monitor (a chair at the corner that would swing into it) goes
+    /// the long way round instead; back to normal once the base drives on or stops turning.
+    fn turn_the_other_way(&mut self) {
+        let Some(sign) = self.forced_turn else {
+            return;
+        };
+        let v = self.velocity;
+        if v.speed_mps.abs() < 1e-3 && v.yaw_rate_radps != 0.0 {
+            self.velocity.yaw_rate_radps = sign * v.yaw_rate_radps.abs();
+        } else {
+            self.forced_turn = None;
+        }
     }
 
     /// On the tight stretch next to a standing spot: the last metres of a docking, the first
@@ -355,6 +377,23 @@ impl MissionCore {
                 && self.monitor_hold_since.is_some();
         match (holding, self.monitor_hold_since) {
             (true, None) => self.monitor_hold_since = Some(now),
+            (true, Some(since))
+                if self.forced_turn.is_none()
+                    && self.velocity.speed_mps.abs() < 1e-3
+                    && self.velocity.yaw_rate_radps != 0.0
+                    && now.saturating_sub(since) >= TURN_FLIP_AFTER =>
+            {
+                // A turn in place held: try the other way round (reported), the hold counted
+                // afresh.
+                self.forced_turn = Some(-self.velocity.yaw_rate_radps.signum());
+                self.monitor_hold_since = Some(now);
+                self.event(
+                    EventKind::Obstacle,
+                    now,
+                    format_args!("collision monitor: turn held, turning the other way round"),
+                    outputs,
+                );
+            }
             (true, Some(since)) => {
                 if !self.hold_reported && now.saturating_sub(since) >= HOLD_REPORT_AFTER {
                     self.hold_reported = true;
