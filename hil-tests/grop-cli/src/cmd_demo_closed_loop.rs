@@ -68,6 +68,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         log: (!args.no_record).then(|| args.record.clone()),
         fault: args.fault,
         lidar: true,
+        unmapped_chairs: Vec::new(),
     };
     println!(
         "scene {:?}: {} chairs, {} objects; robot at {:.1} m/s, R = {}; method {}",

@@ -206,6 +206,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                     log: None,
                     fault: None,
                     lidar: !args.no_lidar,
+                    unmapped_chairs: Vec::new(),
                 };
                 let t0 = Instant::now();
                 let result = mission::start(&spec, &bins)

@@ -195,6 +195,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             log: None,
             fault: None,
             lidar: true,
+            unmapped_chairs: Vec::new(),
         };
         let t0 = Instant::now();
         let outcome = mission::start(&spec, &bins)

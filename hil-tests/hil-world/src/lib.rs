@@ -338,6 +338,8 @@ impl World {
             }),
             commands: faults::CommandMonitor::default(),
             max_base_speed: (0.0, 0.0),
+            min_base_clearance: None,
+            base_blocks: 0,
         };
         let mut injector = Injector::default();
         let mut frame_id = 0u64;
@@ -518,8 +520,18 @@ impl World {
             // Collisions, every 10 ms.
             if now >= next_collision_check {
                 next_collision_check = now + Duration::from_millis(10);
-                let base_hit = world::base_collides(&cfg.scene, &cfg.robot, pose)
-                    || std::mem::take(&mut blocked_since_check);
+                let blocked = std::mem::take(&mut blocked_since_check);
+                let base_hit = world::base_collides(&cfg.scene, &cfg.robot, pose) || blocked;
+                if mission_start.is_some() {
+                    let gap = if blocked {
+                        0.0
+                    } else {
+                        world::base_clearance(&cfg.scene, &cfg.robot, pose)
+                    };
+                    if report.min_base_clearance.is_none_or(|(g, _)| gap < g) {
+                        report.min_base_clearance = Some((gap, [pose.x_m, pose.y_m, pose.yaw_rad]));
+                    }
+                }
                 cfg.scene
                     .obstacle_boxes_into(&cfg.robot, pose, &mut obstacles);
                 // The robot's own body (first box) is not furniture.
@@ -863,6 +875,7 @@ impl World {
             }
         }
         report.commands = self.base.bus_mut().monitor();
+        report.base_blocks = self.base.sim().stats().blocks;
         if let (Some(rec), Some(at)) = (report.fault.as_mut(), injector.at) {
             rec.can = self.base.bus_mut().counts();
             rec.can.intruder = injector.intruder_frames;

@@ -127,6 +127,10 @@ pub struct MissionSpec {
     /// Simulate the range sensor (default); `false`: the executive drives without its
     /// collision monitor, as before the lidar.
     pub lidar: bool,
+    /// Chairs that stand in the world but not in the onboard map (`scene`): moved there after
+    /// the map was made. The world (and its camera) has them; only the range sensor tells the
+    /// executive.
+    pub unmapped_chairs: Vec<world::Chair>,
 }
 
 static RUNS: AtomicU64 = AtomicU64::new(0);
@@ -381,6 +385,18 @@ pub fn start(spec: &MissionSpec, bins: &Binaries) -> anyhow::Result<RunningMissi
     spec.scene
         .save(&scene_path)
         .with_context(|| format!("writing {}", scene_path.display()))?;
+    // The world's truth: the map plus the chairs the map does not know.
+    let world_scene_path = if spec.unmapped_chairs.is_empty() {
+        scene_path.clone()
+    } else {
+        let mut truth = spec.scene.clone();
+        truth.chairs.extend_from_slice(&spec.unmapped_chairs);
+        let path = spec.dir.join("world-scene.toml");
+        truth
+            .save(&path)
+            .with_context(|| format!("writing {}", path.display()))?;
+        path
+    };
     let robot_path = spec.dir.join("robot.toml");
     spec.robot
         .save(&robot_path)
@@ -397,7 +413,7 @@ pub fn start(spec: &MissionSpec, bins: &Binaries) -> anyhow::Result<RunningMissi
     let mut world_cmd = Command::new(&bins.world);
     world_cmd
         .arg("--scene")
-        .arg(&scene_path)
+        .arg(&world_scene_path)
         .arg("--robot")
         .arg(&robot_path)
         .args(["--run", &run, "--seed", &spec.seed.to_string()])

@@ -176,4 +176,12 @@ pub struct WorldReport {
     /// Fastest the base truly drove (m/s) and turned (rad/s).
     #[serde(default)]
     pub max_base_speed: (f64, f64),
+    /// The closest call: the smallest gap between the base's footprint and any table, chair
+    /// or wall during the mission (m; 0 in contact), and the base pose then (checked every
+    /// 10 ms; `None` before the mission started).
+    #[serde(default)]
+    pub min_base_clearance: Option<(f64, [f64; 3])>,
+    /// Times the world held the base back at furniture (drives stalled).
+    #[serde(default)]
+    pub base_blocks: u64,
 }

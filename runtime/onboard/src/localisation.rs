@@ -110,7 +110,11 @@ pub struct Localiser {
     last_global_ns: Option<u64>,
     table_fix: Option<(PlanarPose, u64)>,
     odom_at_table_fix: PlanarPose,
+    last_aligned_ns: Option<u64>,
 }
+
+/// After a scan alignment, global fixes do not move the estimate for this long (ns).
+pub const ALIGNED_FOR_NS: u64 = 1_000_000_000;
 
 impl Localiser {
     /// A filter that knows nothing yet.
@@ -123,6 +127,7 @@ impl Localiser {
             last_global_ns: None,
             table_fix: None,
             odom_at_table_fix: PlanarPose::default(),
+            last_aligned_ns: None,
         }
     }
 
@@ -139,6 +144,10 @@ impl Localiser {
             return FixOutcome::Rejected;
         }
         self.last_global_ns = Some(stamp_ns);
+        if self.initialised && self.is_aligned(stamp_ns) {
+            // The scan alignment is the better source while it lasts.
+            return FixOutcome::Blended;
+        }
         // The correction that would make the estimate equal the fix.
         let wanted = fix.compose(&self.odom.inverse());
         if !self.initialised {
@@ -161,6 +170,35 @@ impl Localiser {
         };
         self.map_from_odom = blended.compose(&self.odom.inverse());
         FixOutcome::Blended
+    }
+
+    /// A scan-to-map alignment: `pose` is where the base was when the odometry read `odom`.
+    /// Pulls the correction half way to it (the alignment is centimetre-precise but can be
+    /// fooled by moved furniture; two agreeing scans make it whole). While alignments arrive
+    /// (within [`ALIGNED_FOR_NS`]), global fixes keep the estimate fresh but no longer move it:
+    /// their per-leg bias is what the alignment removes.
+    pub fn on_aligned(&mut self, pose: PlanarPose, odom: PlanarPose, stamp_ns: u64) -> FixOutcome {
+        if !pose.is_finite() || !odom.is_finite() || !self.initialised {
+            return FixOutcome::Rejected;
+        }
+        let wanted = pose.compose(&odom.inverse());
+        let now_estimate = self.estimate();
+        let target = wanted.compose(&self.odom);
+        let g = 0.5;
+        let blended = PlanarPose {
+            x_m: now_estimate.x_m + g * (target.x_m - now_estimate.x_m),
+            y_m: now_estimate.y_m + g * (target.y_m - now_estimate.y_m),
+            yaw_rad: wrap(now_estimate.yaw_rad + g * wrap(target.yaw_rad - now_estimate.yaw_rad)),
+        };
+        self.map_from_odom = blended.compose(&self.odom.inverse());
+        self.last_aligned_ns = Some(stamp_ns);
+        FixOutcome::Blended
+    }
+
+    /// Whether a scan alignment was taken within [`ALIGNED_FOR_NS`] of `now_ns`.
+    pub fn is_aligned(&self, now_ns: u64) -> bool {
+        self.last_aligned_ns
+            .is_some_and(|t| now_ns.saturating_sub(t) <= ALIGNED_FOR_NS)
     }
 
     /// A table-relative fix (already in the world frame): taken whole, and kept as the arm's

@@ -18,6 +18,33 @@ const WALL_THICKNESS_M: f64 = 0.1;
 /// Whether the base footprint at `base` touches a table, a chair or a wall (or leaves the room).
 /// Tables count from the floor up: the base cannot drive under a table top. With
 /// [`BaseCollisionModel::ChairDiscs`] (the authors' code) the base is a point instead.
+/// The gap between the base's real footprint at `base` and the nearest table, chair or wall
+/// (m; 0 in contact): what the HIL world reports as the closest call of a mission.
+pub fn base_clearance(scene: &Scene, robot: &RobotConfig, base: BasePose) -> f64 {
+    let footprint = robot.footprint.at(base.x_m, base.y_m, base.yaw_rad);
+    let room = &scene.room;
+    let walls = footprint
+        .corners()
+        .iter()
+        .map(|&(x, y)| {
+            (x - room.x_min_m)
+                .min(room.x_max_m - x)
+                .min(y - room.y_min_m)
+                .min(room.y_max_m - y)
+        })
+        .fold(f64::INFINITY, f64::min)
+        .max(0.0);
+    let furniture = [
+        scene.banquet_table.footprint(),
+        scene.loading_table.footprint(),
+    ]
+    .into_iter()
+    .chain(scene.chairs.iter().map(Chair::footprint))
+    .map(|r| footprint.distance_to(&r))
+    .fold(f64::INFINITY, f64::min);
+    walls.min(furniture)
+}
+
 pub fn base_collides(scene: &Scene, robot: &RobotConfig, base: BasePose) -> bool {
     if let BaseCollisionModel::ChairDiscs { radius_m } = robot.base_collision {
         let r2 = radius_m * radius_m;

@@ -137,6 +137,26 @@ impl OrientedRect {
         })
     }
 
+    /// The gap between the two rectangles (m; 0 when they touch or overlap): the smallest
+    /// distance from a corner of one to an edge of the other.
+    pub fn distance_to(&self, other: &OrientedRect) -> f64 {
+        if self.overlaps(other) {
+            return 0.0;
+        }
+        let gap = |a: &OrientedRect, b: &OrientedRect| {
+            let edges = b.corners();
+            a.corners()
+                .iter()
+                .map(|&p| {
+                    (0..4)
+                        .map(|k| point_segment_distance(p, edges[k], edges[(k + 1) % 4]))
+                        .fold(f64::INFINITY, f64::min)
+                })
+                .fold(f64::INFINITY, f64::min)
+        };
+        gap(self, other).min(gap(other, self))
+    }
+
     /// Whether the rectangle lies completely inside the axis-aligned bounds (touching allowed).
     pub fn inside_bounds(&self, x_min_m: f64, x_max_m: f64, y_min_m: f64, y_max_m: f64) -> bool {
         let (x0, x1, y0, y1) = self.bounds();
@@ -199,6 +219,18 @@ impl OverlapProbe {
             .zip(&self.radii)
             .all(|(&(ax, ay), &radius)| (tx * ax + ty * ay).abs() + TOUCH_TOLERANCE_M < radius)
     }
+}
+
+/// Distance from point `p` to the segment `a`-`b` (m).
+pub fn point_segment_distance(p: (f64, f64), a: (f64, f64), b: (f64, f64)) -> f64 {
+    let (dx, dy) = (b.0 - a.0, b.1 - a.1);
+    let len2 = dx * dx + dy * dy;
+    let t = if len2 > 0.0 {
+        (((p.0 - a.0) * dx + (p.1 - a.1) * dy) / len2).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    (p.0 - a.0 - t * dx).hypot(p.1 - a.1 - t * dy)
 }
 
 /// Wraps an angle to (-pi, pi].
@@ -310,5 +342,29 @@ mod tests {
     fn wrap_angle() {
         assert!((wrap_angle_rad(3.0 * std::f64::consts::PI) - std::f64::consts::PI).abs() < 1e-12);
         assert!((wrap_angle_rad(-0.5) + 0.5).abs() < 1e-12);
+    }
+}
+
+#[cfg(test)]
+mod distance_tests {
+    use super::*;
+
+    #[test]
+    fn gaps_between_rectangles() {
+        let a = OrientedRect::new(0.0, 0.0, 0.6, 0.55, 0.0);
+        // 0.1 m ahead of the front edge.
+        let b = OrientedRect::new(0.6, 0.0, 0.4, 0.4, 0.0);
+        assert!((a.distance_to(&b) - 0.1).abs() < 1e-12);
+        assert!((b.distance_to(&a) - 0.1).abs() < 1e-12);
+        // Corner to corner, diagonally.
+        let c = OrientedRect::new(0.3 + 0.2 + 0.03, 0.275 + 0.2 + 0.04, 0.4, 0.4, 0.0);
+        assert!((a.distance_to(&c) - 0.05).abs() < 1e-9);
+        // Overlapping: 0.
+        let d = OrientedRect::new(0.2, 0.1, 0.4, 0.4, 0.7);
+        assert_eq!(a.distance_to(&d), 0.0);
+        // A turned rectangle's corner nearest an edge.
+        let e = OrientedRect::new(0.6, 0.0, 0.2, 0.2, std::f64::consts::FRAC_PI_4);
+        let expected = 0.6 - 0.1 * std::f64::consts::SQRT_2 - 0.3;
+        assert!((a.distance_to(&e) - expected).abs() < 1e-9);
     }
 }

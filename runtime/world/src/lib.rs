@@ -32,7 +32,7 @@ pub mod scene;
 pub mod table_settings;
 pub mod view;
 
-pub use collision::base_collides;
+pub use collision::{base_clearance, base_collides};
 pub use lidar::{LidarSpec, RayScene};
 pub use robot::{BaseCollisionModel, BaseFootprint, RobotConfig, RobotError};
 pub use scene::{Chair, InvalidField, Scene, SceneError, UnloadTarget};

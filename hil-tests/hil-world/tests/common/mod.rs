@@ -30,5 +30,6 @@ pub fn spec(test: &str, seed: u64) -> MissionSpec {
         log: None,
         fault: None,
         lidar: true,
+        unmapped_chairs: Vec::new(),
     }
 }

@@ -122,6 +122,9 @@ fn main() -> anyhow::Result<()> {
     let state = executive.run(&|| !stop.load(Ordering::Relaxed), args.exit_when_done);
     let stats = executive.stats();
     log::info!("grop-executive: minor cycle {}", executive.loop_summary());
+    if let Some(range) = executive.range_status(clock.now()) {
+        log::info!("grop-executive: range sensor {range}");
+    }
     log::info!(
         "grop-executive: {state:?}; {} cycles, {} overruns, {} unloads ok, {} failed",
         stats.cycles,

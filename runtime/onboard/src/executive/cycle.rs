@@ -64,6 +64,12 @@ pub struct CycleInputs<'a> {
     pub monitor: MonitorAction,
     /// The velocity the shell last sent to the base (after the collision monitor).
     pub sent: Twist,
+    /// A scan-to-map alignment that came in: the base pose it found and the odometry pose the
+    /// scan was taken at.
+    pub aligned: Option<(
+        crate::localisation::PlanarPose,
+        crate::localisation::PlanarPose,
+    )>,
     /// The operator's enable (the safety work makes start-up wait for it).
     pub operator_enable: bool,
 }
@@ -87,6 +93,7 @@ impl<'a> CycleInputs<'a> {
             clock_lost: false,
             monitor: MonitorAction::Clear,
             sent: Twist::ZERO,
+            aligned: None,
             operator_enable: true,
         }
     }

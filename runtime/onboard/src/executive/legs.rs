@@ -217,11 +217,12 @@ impl MissionCore {
         self.dock_goal = None;
         let mut to = (step.x_m, step.y_m);
         self.dock = None;
-        let unload_next = self
+        // A goal next to a table (an unload's, or the loading station's) is docked.
+        let table_next = self
             .steps
             .get(self.step_index + 1)
-            .is_some_and(|n| n.kind() == Ok(TaskStepKind::Unload));
-        if unload_next && let Some(d) = self.free_stretch(step.x_m, step.y_m, step.yaw_rad) {
+            .is_some_and(|n| matches!(n.kind(), Ok(TaskStepKind::Unload | TaskStepKind::Load)));
+        if table_next && let Some(d) = self.free_stretch(step.x_m, step.y_m, step.yaw_rad) {
             let (s, c) = step.yaw_rad.sin_cos();
             to = (step.x_m - c * d, step.y_m - s * d);
             self.dock = Some([step.x_m, step.y_m, step.yaw_rad]);

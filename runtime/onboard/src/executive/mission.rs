@@ -61,6 +61,8 @@ pub struct CoreStats {
     pub monitor_holds: u32,
     /// Stalls (motion sent, none measured).
     pub stalls: u32,
+    /// Scan-to-map alignments taken into the estimate.
+    pub alignments: u32,
 }
 
 /// A hold of the collision monitor is reported once it lasts this long (shorter ones are the
@@ -593,6 +595,12 @@ impl MissionCore {
                 }
             }
         }
+        // The range sensor's scan aligned to the map (the shell's worker).
+        if let Some((pose, odom)) = inputs.aligned
+            && self.localiser.on_aligned(pose, odom, ns(now)) != FixOutcome::Rejected
+        {
+            self.stats.alignments += 1;
+        }
         // Peers.
         if inputs.planner_heartbeats > 0 {
             self.planner_seen = Some(now);
@@ -860,6 +868,9 @@ impl MissionCore {
             (Ok(_), Some(Phase::Loading { until })) => {
                 if now >= until {
                     self.load(&step, now, outputs);
+                    // The station is next to the loading table: leave it as a table, straight
+                    // back first, then turn.
+                    self.at_table = true;
                     None
                 } else {
                     Some(Phase::Loading { until })

@@ -40,6 +40,7 @@ pub mod legs;
 pub mod mission;
 pub mod plan_check;
 pub mod range;
+pub mod scan_match;
 pub mod shell;
 pub mod unload;
 pub mod ur5e_arm;

@@ -29,11 +29,12 @@ use super::cycle::{ArmCommand, BaseReading, CycleInputs, CycleOutputs};
 use super::mission::{MissionCore, ns};
 use super::range::{MapOverhangs, RangeSensor};
 use super::unload::{self, ArmFault, SkillStatus, UnloadFailure};
-use super::worker::{Answer, Job, PathFailure, Worker};
+use super::worker::{ALIGN_POINTS, Answer, Job, PathFailure, Worker};
 use super::{
     AbortReason, ArmDevice, ArmSnapshot, ExecutiveConfig, ExecutiveError, ExecutiveStats,
     MAX_TRAY_SLOTS, MissionState,
 };
+use crate::localisation::PlanarPose;
 
 /// Most pose fixes one base cycle takes in (the world sends one or two per cycle); the rest
 /// wait in the subscriber's queue for the next cycle.
@@ -112,6 +113,12 @@ pub struct Executive<D: BaseDevice, A: ArmDevice> {
     guard: Option<Guard>,
     /// What the monitor did on the last base cycle, and the velocity sent.
     last_verdict: Verdict,
+    /// A scan alignment is with the worker.
+    align_in_flight: bool,
+    /// An accepted alignment for the next update (pose, odometry then).
+    aligned: Option<(PlanarPose, PlanarPose)>,
+    /// Alignments the worker made and the shell refused (too few pairs, residual too large).
+    alignments_refused: u64,
 }
 
 /// The range sensor, the collision monitor and its buffers.
@@ -242,6 +249,9 @@ impl<D: BaseDevice, A: ArmDevice> Executive<D, A> {
             stats: ExecutiveStats::default(),
             loop_stats: grop_clock::rt::LoopStats::new(cycle_period),
             guard: None,
+            align_in_flight: false,
+            aligned: None,
+            alignments_refused: 0,
             last_verdict: Verdict {
                 twist: Twist::ZERO,
                 action: super::MonitorAction::Stale,
@@ -278,9 +288,15 @@ impl<D: BaseDevice, A: ArmDevice> Executive<D, A> {
 
     /// The range sensor's health, or `None` without one.
     pub fn range_status(&self, now: Duration) -> Option<String> {
-        self.guard
-            .as_ref()
-            .map(|g| format!("{} ({} scans taken)", g.sensor.status(now), g.scans))
+        self.guard.as_ref().map(|g| {
+            format!(
+                "{} ({} scans taken, {} alignments taken, {} refused)",
+                g.sensor.status(now),
+                g.scans,
+                self.core.stats().alignments,
+                self.alignments_refused
+            )
+        })
     }
 
     /// The mission state.
@@ -391,6 +407,7 @@ impl<D: BaseDevice, A: ArmDevice> Executive<D, A> {
             clock_lost: false,
             monitor: self.last_verdict.action,
             sent: self.last_verdict.twist,
+            aligned: self.aligned.take(),
             operator_enable: true,
         };
         self.outputs.clear();
@@ -447,7 +464,19 @@ impl<D: BaseDevice, A: ArmDevice> Executive<D, A> {
             self.plans.push(*plan);
         }
         if self.answer.is_none() {
-            self.answer = self.worker.try_answer();
+            self.answer = match self.worker.try_answer() {
+                Some(Answer::Align(_, alignment, odom)) => {
+                    self.align_in_flight = false;
+                    if alignment.accepted() {
+                        let p = alignment.pose;
+                        self.aligned = Some((PlanarPose::new(p.x_m, p.y_m, p.yaw_rad), odom));
+                    } else {
+                        self.alignments_refused += 1;
+                    }
+                    None
+                }
+                other => other,
+            };
         }
     }
 
@@ -473,6 +502,24 @@ impl<D: BaseDevice, A: ArmDevice> Executive<D, A> {
             &mut g.scan,
         ) {
             g.scans += 1;
+            // The scan as the sensor saw it, to the worker for the alignment to the map.
+            if !self.align_in_flight {
+                let mut points = [[0.0f32; 2]; ALIGN_POINTS];
+                let mut count = 0usize;
+                for (slot, p) in points.iter_mut().zip(g.scan.iter()) {
+                    *slot = p;
+                    count += 1;
+                }
+                let e = self.core.estimate();
+                let job = Job::Align {
+                    id: 0,
+                    prior: e,
+                    odom: PlanarPose::new(odometry.x_m, odometry.y_m, odometry.yaw_rad),
+                    count: count as u16,
+                    points,
+                };
+                self.align_in_flight = matches!(self.worker.submit(job), Ok(true));
+            }
             g.overhangs.add_to(self.core.estimate(), own, &mut g.scan);
             g.monitor.set_scan(&g.scan);
         } else if let (Some(before), Some(obstacles)) = (g.last_odometry, g.monitor.obstacles_mut())
@@ -591,6 +638,8 @@ impl<D: BaseDevice, A: ArmDevice> Executive<D, A> {
                         }),
                     ),
                     Job::Unload { id, .. } => Answer::Unload(id, Err(UnloadFailure::NoArmPath)),
+                    // Not taken: the next scan tries again.
+                    Job::Align { .. } => return,
                 });
             }
         }

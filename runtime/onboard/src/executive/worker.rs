@@ -34,6 +34,7 @@ pub enum PathFailure {
 
 /// A job for the worker.
 #[derive(Debug, Clone, Copy)]
+#[allow(clippy::large_enum_variant)]
 pub enum Job {
     /// A base path between two points.
     Path {
@@ -59,7 +60,23 @@ pub enum Job {
         /// RRT seed.
         seed: u64,
     },
+    /// Align a scan to the map (the shell's job, not the core's: the answer becomes a fix).
+    Align {
+        /// Request id.
+        id: u64,
+        /// The estimate when the scan was taken.
+        prior: crate::localisation::PlanarPose,
+        /// The odometry pose then.
+        odom: crate::localisation::PlanarPose,
+        /// Points used in `points`.
+        count: u16,
+        /// The scan's points, base frame (m).
+        points: [[f32; 2]; ALIGN_POINTS],
+    },
 }
+
+/// Most points an alignment job carries (one per bearing of the monitor's obstacles).
+pub const ALIGN_POINTS: usize = motion_control::collision::BINS;
 
 /// The worker's answer. Variants travel by value through the preallocated channel (boxing the
 /// large one would allocate per answer), hence the size difference.
@@ -70,6 +87,12 @@ pub enum Answer {
     Path(u64, Result<FollowerPath, PathFailure>),
     /// To an unload job.
     Unload(u64, Result<UnloadPlan, UnloadFailure>),
+    /// A scan alignment and the odometry it was taken at.
+    Align(
+        u64,
+        super::scan_match::Alignment,
+        crate::localisation::PlanarPose,
+    ),
 }
 
 /// The worker's handle.
@@ -102,6 +125,7 @@ impl Worker {
             .name("grop-planning".into())
             .spawn(move || {
                 let mut obstacles = Vec::new();
+                let edges = super::scan_match::MapEdges::of_scene(&scene);
                 for job in inbox {
                     let answer = match job {
                         Job::Path { id, from, to } => Answer::Path(
@@ -140,6 +164,21 @@ impl Worker {
                             }
                             Answer::Unload(id, planned)
                         }
+                        Job::Align {
+                            id,
+                            prior,
+                            odom,
+                            count,
+                            points,
+                        } => Answer::Align(
+                            id,
+                            super::scan_match::align(
+                                &edges,
+                                &points[..usize::from(count).min(ALIGN_POINTS)],
+                                prior,
+                            ),
+                            odom,
+                        ),
                     };
                     let sent = outbox.send(answer);
                     worker_clock.end_hold();

@@ -1,0 +1,266 @@
+//! Scan-to-map alignment: the range sensor's points against the prior map's edges corrects the
+//! localisation estimate (the global localiser's fixes carry a bias of several centimetres per
+//! leg; the furniture the sensor sees does not).
+//!
+//! Point-to-line ICP: each point (base frame, projected on the floor) is paired with the
+//! nearest edge of what the sensor can see in the map (chair footprints, table legs, the walls),
+//! pairs farther than [`MATCH_DISTANCE_M`] are left out (unmapped or moved furniture, the
+//! floor), and a Gauss-Newton step on (x, y, yaw) minimises the squared distances along the
+//! edges' normals; the 3x3 normal equations are solved with faer. An alignment is accepted
+//! only when enough points pair up and their residual is small ([`Alignment::accepted`]).
+
+use faer::Mat;
+use world::Scene;
+
+use crate::localisation::{PlanarPose, wrap};
+
+/// Points farther than this from every map edge are not paired (m).
+pub const MATCH_DISTANCE_M: f64 = 0.25;
+/// Map edges farther than this from the prior pose are left out (m).
+const MAP_RANGE_M: f64 = 8.0;
+/// Gauss-Newton iterations.
+const ITERATIONS: usize = 8;
+/// Points needed for an alignment to count.
+pub const MIN_PAIRS: usize = 40;
+/// Largest RMS residual an accepted alignment may have (m).
+pub const MAX_RMS_M: f64 = 0.03;
+/// Largest correction an accepted alignment may make (m): more is a wrong match, not a fix.
+pub const MAX_CORRECTION_M: f64 = 0.4;
+
+/// The map's edges the sensor can see, as segments in the world frame.
+#[derive(Debug, Clone, Default)]
+pub struct MapEdges {
+    segments: Vec<[f64; 4]>,
+}
+
+impl MapEdges {
+    /// The edges of `scene`'s chairs, table legs and walls (the table tops are left out: the
+    /// sensor's rings pass under them near the table).
+    pub fn of_scene(scene: &Scene) -> Self {
+        let mut segments = Vec::new();
+        let mut rect = |corners: [(f64, f64); 4]| {
+            for k in 0..4 {
+                let (a, b) = (corners[k], corners[(k + 1) % 4]);
+                segments.push([a.0, a.1, b.0, b.1]);
+            }
+        };
+        for chair in &scene.chairs {
+            rect(chair.footprint().corners());
+        }
+        let leg = world::lidar::TABLE_LEG_SIZE_M;
+        let inset = 0.5 * leg + 0.02;
+        let mut legs = |x0: f64, length: f64, cy: f64, depth: f64| {
+            for lx in [x0 + inset, x0 + length - inset] {
+                for ly in [cy - 0.5 * depth + inset, cy + 0.5 * depth - inset] {
+                    rect(world::geometry::OrientedRect::new(lx, ly, leg, leg, 0.0).corners());
+                }
+            }
+        };
+        let bt = &scene.banquet_table;
+        for k in 0..bt.segment_count {
+            let x0 = bt.x_min_m() + f64::from(k) * bt.segment_length_m;
+            legs(
+                x0,
+                bt.segment_length_m,
+                world::scene::TABLE_CENTER_Y_M,
+                bt.depth_m,
+            );
+        }
+        let lt = &scene.loading_table;
+        legs(
+            lt.center_x_m - 0.5 * lt.length_m,
+            lt.length_m,
+            lt.center_y_m,
+            lt.depth_m,
+        );
+        let r = &scene.room;
+        rect([
+            (r.x_min_m, r.y_min_m),
+            (r.x_max_m, r.y_min_m),
+            (r.x_max_m, r.y_max_m),
+            (r.x_min_m, r.y_max_m),
+        ]);
+        Self { segments }
+    }
+
+    /// Segments.
+    pub fn len(&self) -> usize {
+        self.segments.len()
+    }
+
+    /// True without segments.
+    pub fn is_empty(&self) -> bool {
+        self.segments.is_empty()
+    }
+}
+
+/// The result of one alignment.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Alignment {
+    /// The base pose that best explains the scan.
+    pub pose: PlanarPose,
+    /// Points paired with a map edge in the last iteration.
+    pub pairs: usize,
+    /// Their RMS distance to their edges (m).
+    pub rms_m: f64,
+    /// How far the pose moved from the prior (m).
+    pub correction_m: f64,
+}
+
+impl Alignment {
+    /// Enough pairs, a small residual, a plausible correction.
+    pub fn accepted(&self) -> bool {
+        self.pairs >= MIN_PAIRS && self.rms_m <= MAX_RMS_M && self.correction_m <= MAX_CORRECTION_M
+    }
+}
+
+/// Aligns `points` (base frame, m) to `map` starting from `prior`.
+pub fn align(map: &MapEdges, points: &[[f32; 2]], prior: PlanarPose) -> Alignment {
+    // Only the edges that can matter (a few hundred of the map's).
+    let near: Vec<[f64; 4]> = map
+        .segments
+        .iter()
+        .copied()
+        .filter(|s| {
+            let d = world::geometry::point_segment_distance(
+                (prior.x_m, prior.y_m),
+                (s[0], s[1]),
+                (s[2], s[3]),
+            );
+            d <= MAP_RANGE_M
+        })
+        .collect();
+    let mut pose = prior;
+    let mut pairs = 0;
+    let mut rms = f64::INFINITY;
+    for _ in 0..ITERATIONS {
+        let (s, c) = pose.yaw_rad.sin_cos();
+        let mut h = [[0.0f64; 3]; 3];
+        let mut g = [0.0f64; 3];
+        let (mut n, mut sum2) = (0usize, 0.0f64);
+        for p in points {
+            let (bx, by) = (f64::from(p[0]), f64::from(p[1]));
+            let (wx, wy) = (pose.x_m + c * bx - s * by, pose.y_m + s * bx + c * by);
+            // Nearest edge, and the foot of the perpendicular on it.
+            let mut best = (MATCH_DISTANCE_M, None);
+            for e in &near {
+                let (dx, dy) = (e[2] - e[0], e[3] - e[1]);
+                let len2 = dx * dx + dy * dy;
+                let t = if len2 > 0.0 {
+                    (((wx - e[0]) * dx + (wy - e[1]) * dy) / len2).clamp(0.0, 1.0)
+                } else {
+                    0.0
+                };
+                let (fx, fy) = (e[0] + t * dx, e[1] + t * dy);
+                let d = (wx - fx).hypot(wy - fy);
+                if d < best.0 {
+                    best = (d, Some((fx, fy, dx, dy, len2)));
+                }
+            }
+            let Some((fx, fy, dx, dy, len2)) = best.1 else {
+                continue;
+            };
+            // Point-to-line: the residual along the edge's normal (point-to-point at an end).
+            let len = len2.sqrt();
+            let (nx, ny) = if len > 1e-9 {
+                (-dy / len, dx / len)
+            } else {
+                let d = best.0.max(1e-9);
+                ((wx - fx) / d, (wy - fy) / d)
+            };
+            let r = (wx - fx) * nx + (wy - fy) * ny;
+            // d(world point)/d(yaw) = (-s bx - c by, c bx - s by).
+            let j = [nx, ny, nx * (-s * bx - c * by) + ny * (c * bx - s * by)];
+            for a in 0..3 {
+                g[a] += j[a] * r;
+                for b in 0..3 {
+                    h[a][b] += j[a] * j[b];
+                }
+            }
+            n += 1;
+            sum2 += r * r;
+        }
+        pairs = n;
+        if n < 3 {
+            break;
+        }
+        rms = (sum2 / n as f64).sqrt();
+        let Some(step) = solve(h, g) else { break };
+        pose = PlanarPose::new(
+            pose.x_m - step[0],
+            pose.y_m - step[1],
+            wrap(pose.yaw_rad - step[2]),
+        );
+        if step[0].hypot(step[1]) < 1e-4 && step[2].abs() < 1e-4 {
+            break;
+        }
+    }
+    Alignment {
+        pose,
+        pairs,
+        rms_m: rms,
+        correction_m: pose.distance_m(&prior),
+    }
+}
+
+/// Solves `h x = g` (3x3, symmetric) with faer's LU; `None` when singular (points on one line).
+fn solve(h: [[f64; 3]; 3], g: [f64; 3]) -> Option<[f64; 3]> {
+    let a = Mat::<f64>::from_fn(3, 3, |i, j| h[i][j] + if i == j { 1e-9 } else { 0.0 });
+    let b = Mat::<f64>::from_fn(3, 1, |i, _| g[i]);
+    let lu = a.partial_piv_lu();
+    let x = faer::linalg::solvers::Solve::solve(&lu, &b);
+    let out = [x[(0, 0)], x[(1, 0)], x[(2, 0)]];
+    out.iter().all(|v| v.is_finite()).then_some(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use world::RayScene;
+
+    /// A level ring of points from the ray scene at the true pose, in the base frame.
+    fn scan_at(scene: &Scene, truth: PlanarPose) -> Vec<[f32; 2]> {
+        let rays = RayScene::from_scene(scene);
+        (0..720)
+            .filter_map(|k| {
+                let a = truth.yaw_rad + f64::from(k) * std::f64::consts::TAU / 720.0;
+                let dir = [a.cos(), a.sin(), 0.0];
+                let (r, _) = rays.cast([truth.x_m, truth.y_m, 0.4], dir, 30.0)?;
+                let b = f64::from(k) * std::f64::consts::TAU / 720.0;
+                Some([(r * b.cos()) as f32, (r * b.sin()) as f32])
+            })
+            .collect()
+    }
+
+    #[test]
+    fn a_biased_prior_is_pulled_to_the_true_pose() {
+        let scene = Scene::from_toml_str(
+            include_str!("../../../world/data/example-scene.toml"),
+            "example-scene.toml",
+        )
+        .expect("example scene");
+        let map = MapEdges::of_scene(&scene);
+        let truth = PlanarPose::new(1.0, 4.9, std::f64::consts::FRAC_PI_2);
+        let points = scan_at(&scene, truth);
+        let prior = PlanarPose::new(1.09, 4.82, std::f64::consts::FRAC_PI_2 + 0.03);
+        let a = align(&map, &points, prior);
+        assert!(a.accepted(), "{a:?}");
+        assert!(a.pose.distance_m(&truth) < 0.01, "{a:?}");
+        assert!(wrap(a.pose.yaw_rad - truth.yaw_rad).abs() < 0.005, "{a:?}");
+    }
+
+    #[test]
+    fn points_that_match_nothing_are_not_accepted() {
+        let scene = Scene::empty_paper_room();
+        let map = MapEdges::of_scene(&scene);
+        // A ring of points 1 m around the base in the middle of an empty room: nothing there.
+        let points: Vec<[f32; 2]> = (0..360)
+            .map(|k| {
+                let a = f64::from(k).to_radians();
+                [a.cos() as f32, a.sin() as f32]
+            })
+            .collect();
+        let a = align(&map, &points, PlanarPose::new(0.0, 2.0, 0.0));
+        assert!(!a.accepted(), "{a:?}");
+    }
+}
