@@ -27,14 +27,15 @@ pub struct Firing {
     pub azimuth_rad: f64,
     /// The ray's elevation, radians, positive up.
     pub elevation_rad: f64,
-    /// The ray starts this far above the sensor origin, metres.
+    /// The ray starts this far above the sensor origin, metres ([`Self::origin`]).
     pub vertical_offset_m: f64,
     /// Laser id (0..16).
     pub laser: u8,
 }
 
 impl Firing {
-    /// The ray's origin in the sensor frame.
+    /// The ray's origin in the sensor frame: the decoder places a return at
+    /// `origin() + range * direction()` (`crate::calib`).
     pub fn origin(&self) -> [f64; 3] {
         [0.0, 0.0, self.vertical_offset_m]
     }
