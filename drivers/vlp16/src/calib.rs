@@ -154,12 +154,23 @@ impl LaserTrig {
     /// A return in the sensor frame (module docs): laser, distance in metres, azimuth in
     /// hundredths of a degree (clockwise; any real value, not only 0..36000).
     pub fn sensor_point(&self, laser: usize, distance_m: f64, azimuth_cdeg: f64) -> [f64; 3] {
+        let (sin_a, cos_a) = (azimuth_cdeg * (PI / 18_000.0)).sin_cos();
+        self.sensor_point_sin_cos(laser, distance_m, sin_a, cos_a)
+    }
+
+    /// As [`Self::sensor_point`], with the azimuth's sine and cosine.
+    pub fn sensor_point_sin_cos(
+        &self,
+        laser: usize,
+        distance_m: f64,
+        sin_a: f64,
+        cos_a: f64,
+    ) -> [f64; 3] {
         let l = laser % LASERS;
-        let a = azimuth_cdeg * (PI / 18_000.0);
         let xy = distance_m * self.cos_w[l];
         [
-            xy * a.cos(),
-            -xy * a.sin(),
+            xy * cos_a,
+            -xy * sin_a,
             distance_m * self.sin_w[l] + self.offset_m[l],
         ]
     }
