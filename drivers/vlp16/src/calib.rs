@@ -4,9 +4,20 @@
 //! Frames: the sensor frame is right-handed, x forward (the sensor's 0 azimuth), y left, z up
 //! (the ROS convention that `velodyne_pointcloud` and `velodyne-decoder` use). The packet's
 //! azimuth `a` is clockwise seen from above, so a return at azimuth `a`, elevation `w` and
-//! distance `d` from laser `l` lies at
-//! `x = d cos w cos a`, `y = -d cos w sin a`, `z = d sin w + offset_l`: the laser's beam starts
-//! `offset_l` above the sensor origin (the manual's vertical correction).
+//! distance `d` from laser `l` with vertical offset `v` lies at
+//! `x = d cos w cos a`, `y = -d cos w sin a`, `z = d sin w + v`: the laser's beam starts `v`
+//! above the sensor origin (the manual's vertical correction, and what `velodyne-decoder` 3.1
+//! does; the ROS driver's `vert_offset_correction` model, from the HDL-64E, puts the offset
+//! perpendicular to the beam instead, which differs by `v sin w` horizontally: up to 2.9 mm on
+//! the VLP-16).
+//!
+//! Azimuth interpolation: every firing's azimuth is the block's azimuth plus the rotation since
+//! the block's first firing, at the packet's mean rate (the azimuth advance from its first to its
+//! last firing cycle, over the cycles between). The block azimuths are whole hundredths of a
+//! degree, so at 600 rpm the gaps between neighbouring blocks alternate between 39 and 40 for a
+//! true 39.8: a gap to the next block would put up to 0.8 hundredths of error into the second
+//! sequence, the packet's mean gap a tenth of that. `velodyne-decoder` 3.1 interpolates the same
+//! way (the CI check compares every point).
 
 use std::f64::consts::PI;
 
@@ -143,12 +154,23 @@ impl LaserTrig {
     /// A return in the sensor frame (module docs): laser, distance in metres, azimuth in
     /// hundredths of a degree (clockwise; any real value, not only 0..36000).
     pub fn sensor_point(&self, laser: usize, distance_m: f64, azimuth_cdeg: f64) -> [f64; 3] {
+        let (sin_a, cos_a) = (azimuth_cdeg * (PI / 18_000.0)).sin_cos();
+        self.sensor_point_sin_cos(laser, distance_m, sin_a, cos_a)
+    }
+
+    /// As [`Self::sensor_point`], with the azimuth's sine and cosine.
+    pub fn sensor_point_sin_cos(
+        &self,
+        laser: usize,
+        distance_m: f64,
+        sin_a: f64,
+        cos_a: f64,
+    ) -> [f64; 3] {
         let l = laser % LASERS;
-        let a = azimuth_cdeg * (PI / 18_000.0);
         let xy = distance_m * self.cos_w[l];
         [
-            xy * a.cos(),
-            -xy * a.sin(),
+            xy * cos_a,
+            -xy * sin_a,
             distance_m * self.sin_w[l] + self.offset_m[l],
         ]
     }
@@ -169,36 +191,16 @@ pub fn firing_offset_us_in(mode: ReturnMode, block: usize, seq: usize, laser: us
     firing_offset_us(block / mode.blocks_per_cycle(), seq, laser)
 }
 
-/// The azimuth advance (hundredths of a degree) over each block's firing cycle, from which the
-/// azimuths of its later firings are interpolated: the gap to the next cycle's azimuth (wrapping
-/// through 0); for the packet's last cycle, and where the next azimuth wrapped through 0 and a
-/// gap before it is known, the previous cycle's gap (rotation is steady over 110 us, and this
-/// is also what the ROS driver and `velodyne-decoder` do there). In dual-return mode both blocks
-/// of a cycle get the cycle's gap.
+/// The azimuth advance (hundredths of a degree) over one firing cycle of a packet, from which
+/// the azimuths of each block's later firings are interpolated: the advance from the first
+/// cycle's azimuth to the last's (wrapping through 0), over the cycles between (11, or 5 in
+/// dual-return mode). The same for every block of the packet (module docs say why).
 pub fn cycle_gaps_cdeg(azimuths: &[u16; BLOCKS], mode: ReturnMode) -> [f64; BLOCKS] {
-    let step = mode.blocks_per_cycle();
-    let mut gaps = [0.0; BLOCKS];
-    let mut last: Option<f64> = None;
-    let mut k = 0;
-    while k < BLOCKS {
-        let next = k + step;
-        let gap = if next < BLOCKS {
-            let (a, b) = (i32::from(azimuths[k]), i32::from(azimuths[next]));
-            let wrapped = f64::from((b - a).rem_euclid(i32::from(AZIMUTH_UNITS)));
-            match (b < a, last) {
-                (true, Some(prev)) => prev,
-                _ => wrapped,
-            }
-        } else {
-            last.unwrap_or(0.0)
-        };
-        last = Some(gap);
-        for g in gaps.iter_mut().skip(k).take(step) {
-            *g = gap;
-        }
-        k = next;
-    }
-    gaps
+    let last = BLOCKS - mode.blocks_per_cycle();
+    let cycles_between = (last / mode.blocks_per_cycle()) as f64;
+    let advance =
+        (i32::from(azimuths[last]) - i32::from(azimuths[0])).rem_euclid(i32::from(AZIMUTH_UNITS));
+    [f64::from(advance) / cycles_between; BLOCKS]
 }
 
 /// The azimuth (hundredths of a degree, in `[0, 36000)`) of `laser`'s firing in sequence `seq`
@@ -251,20 +253,21 @@ mod tests {
     }
 
     #[test]
-    fn gaps_wrap_and_extrapolate() {
+    fn gaps_are_the_packets_mean_and_wrap() {
+        // Gaps of 39 and 40 alternating: the mean, 39.5 (+ 0.5 / 11 from the last one).
         let mut az = [0u16; BLOCKS];
         for (k, a) in az.iter_mut().enumerate() {
-            *a = ((35_800 + 40 * k) % 36_000) as u16;
+            *a = ((35_800 + 40 * k - k / 2) % 36_000) as u16;
         }
         let gaps = cycle_gaps_cdeg(&az, ReturnMode::Strongest);
-        assert!(gaps.iter().all(|&g| g == 40.0), "{gaps:?}");
-        // A wrap right after the first block: no earlier gap, the wrapped one is used.
-        az[0] = 35_990;
-        az[1] = 30;
-        assert_eq!(cycle_gaps_cdeg(&az, ReturnMode::Strongest)[0], 40.0);
+        let mean = f64::from((az[11] as i32 - az[0] as i32).rem_euclid(36_000)) / 11.0;
+        assert!(
+            gaps.iter().all(|&g| g == mean) && (mean - 39.545).abs() < 0.001,
+            "{gaps:?}"
+        );
         let mut dual = [0u16; BLOCKS];
         for (k, a) in dual.iter_mut().enumerate() {
-            *a = (100 + 40 * (k / 2)) as u16;
+            *a = ((35_950 + 40 * (k / 2)) % 36_000) as u16;
         }
         let gaps = cycle_gaps_cdeg(&dual, ReturnMode::Dual);
         assert!(gaps.iter().all(|&g| g == 40.0), "{gaps:?}");

@@ -1,11 +1,13 @@
 //! The VLP-16 data packet (user manual 63-9243, section 9.3): the 1206-byte UDP payload sent to
 //! port 2368, decoded and encoded byte for byte.
 //!
-//! Layout (all integers little-endian):
+//! Layout (all integers little-endian; the flag is two bytes in the order the manual writes them:
+//! `FF EE` on the wire, as the ROS driver, `velodyne-decoder` and `velodyne-lidar` read it, and
+//! as captures of real sensors show):
 //!
 //! | bytes | content |
 //! |---|---|
-//! | `100 k .. 100 k + 2` | block `k`'s flag `0xFFEE` (on the wire `EE FF`), `k` in 0..12 |
+//! | `100 k .. 100 k + 2` | block `k`'s flag: the bytes `FF EE` (the manual's `0xFFEE`), `k` in 0..12 |
 //! | `100 k + 2 .. + 4` | block `k`'s azimuth in hundredths of a degree, 0..=35999 |
 //! | `100 k + 4 + 3 r .. + 3` | return `r` (0..32): distance in 2 mm units (0: no return), reflectivity |
 //! | `1200 .. 1204` | timestamp: microseconds past the top of the hour, < 3,600,000,000 |
@@ -27,8 +29,9 @@ pub const LASERS: usize = 16;
 pub const RETURNS_PER_BLOCK: usize = 2 * LASERS;
 /// Bytes per data block.
 pub const BLOCK_LEN: usize = 100;
-/// The flag that starts every data block (`EE FF` on the wire).
-pub const BLOCK_FLAG: u16 = 0xFFEE;
+/// The flag that starts every data block: the bytes `FF EE` in this order (the manual's
+/// `0xFFEE`; read as a little-endian u16 it is 0xEEFF).
+pub const BLOCK_FLAG: [u8; 2] = [0xFF, 0xEE];
 /// Product id of the VLP-16 (and the Puck LITE, which shares its packet format).
 pub const PRODUCT_ID_VLP16: u8 = 0x22;
 /// Byte offset of the timestamp.
@@ -123,15 +126,15 @@ pub enum PacketError {
         /// The datagram's length.
         len: usize,
     },
-    /// A block does not start with the flag `0xFFEE`.
-    #[error("block {block} at byte {offset}: flag {found:#06x}, not 0xffee")]
+    /// A block does not start with the flag bytes `FF EE`.
+    #[error("block {block} at byte {offset}: flag bytes {:02X} {:02X}, not FF EE", found[0], found[1])]
     BadBlockFlag {
         /// The block index (0..12).
         block: usize,
         /// The flag's byte offset.
         offset: usize,
-        /// The flag found (little-endian u16).
-        found: u16,
+        /// The two bytes found.
+        found: [u8; 2],
     },
     /// A block's azimuth is 360 degrees or more.
     #[error("block {block} at byte {offset}: azimuth {azimuth_cdeg} cdeg is not below 36000")]
@@ -192,7 +195,7 @@ impl DataPacket {
         let mut blocks = [empty; BLOCKS];
         for (k, block) in blocks.iter_mut().enumerate() {
             let base = k * BLOCK_LEN;
-            let flag = u16_at(bytes, base);
+            let flag = [bytes[base], bytes[base + 1]];
             if flag != BLOCK_FLAG {
                 return Err(PacketError::BadBlockFlag {
                     block: k,
@@ -243,7 +246,7 @@ impl DataPacket {
     pub fn encode(&self, out: &mut [u8; PAYLOAD_LEN]) {
         for (k, block) in self.blocks.iter().enumerate() {
             let base = k * BLOCK_LEN;
-            out[base..base + 2].copy_from_slice(&BLOCK_FLAG.to_le_bytes());
+            out[base..base + 2].copy_from_slice(&BLOCK_FLAG);
             out[base + 2..base + 4].copy_from_slice(&block.azimuth_cdeg.to_le_bytes());
             for (r, ret) in block.returns.iter().enumerate() {
                 let at = base + 4 + 3 * r;
@@ -294,7 +297,7 @@ mod tests {
     fn round_trip_and_byte_positions() {
         let p = sample();
         let bytes = p.to_bytes();
-        assert_eq!(&bytes[0..2], &[0xEE, 0xFF]);
+        assert_eq!(&bytes[0..2], &[0xFF, 0xEE]);
         assert_eq!(
             u16::from_le_bytes([bytes[102], bytes[103]]),
             p.blocks[1].azimuth_cdeg
@@ -319,14 +322,14 @@ mod tests {
             Err(PacketError::WrongLength { len: 1000 })
         );
         let mut b = good;
-        b[700] = 0xEF;
+        b[701] = 0xEF;
         let e = DataPacket::decode(&b).unwrap_err();
         assert_eq!(
             e,
             PacketError::BadBlockFlag {
                 block: 7,
                 offset: 700,
-                found: 0xFFEF
+                found: [0xFF, 0xEF]
             }
         );
         assert_eq!(e.offset(), 700);

@@ -13,6 +13,8 @@ use crate::health::{ClockStep, HourClock};
 use crate::packet::{AZIMUTH_UNITS, BLOCKS, DataPacket, LASERS, Return};
 use crate::{BlindSector, Mount, MountError};
 
+const CDEG_TO_RAD: f64 = std::f64::consts::PI / 18_000.0;
+
 /// One return in the base frame.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct Point {
@@ -86,6 +88,7 @@ pub struct ScanAssembler {
     trig: LaserTrig,
     calib: Calibration,
     mount: Mount,
+    mount_yaw_sin_cos: (f64, f64),
     blind: Vec<BlindSector>,
     filling: Vec<Point>,
     done: Vec<Point>,
@@ -132,6 +135,7 @@ impl ScanAssembler {
             trig: calib.trig(),
             calib,
             mount,
+            mount_yaw_sin_cos: mount.yaw_rad.sin_cos(),
             blind: blind.to_vec(),
             filling: Vec::with_capacity(capacity),
             done: Vec::with_capacity(capacity),
@@ -198,10 +202,21 @@ impl ScanAssembler {
         let step = mode.blocks_per_cycle();
         let azimuths = packet.blocks.map(|b| b.azimuth_cdeg);
         let gaps = cycle_gaps_cdeg(&azimuths, mode);
+        // Every firing's azimuth is its block's plus a per-firing advance, the same in every
+        // block of the packet (one gap per packet): the sines and cosines come from one
+        // `sin_cos` per block and per firing slot by angle addition, not one per return.
+        let mut advance = [[(0.0, 1.0); LASERS]; 2];
+        for (seq, slots) in advance.iter_mut().enumerate() {
+            for (laser, slot) in slots.iter_mut().enumerate() {
+                let cdeg = firing_azimuth_cdeg(0, gaps[0], seq, laser);
+                *slot = (cdeg * CDEG_TO_RAD).sin_cos();
+            }
+        }
         let mut completed: Option<ScanDone> = None;
         let mut contributed = false;
         for cycle in (0..BLOCKS).step_by(step) {
-            for seq in 0..2 {
+            let (sin_block, cos_block) = (f64::from(azimuths[cycle]) * CDEG_TO_RAD).sin_cos();
+            for (seq, slots) in advance.iter().enumerate() {
                 let first_azimuth = firing_azimuth_cdeg(azimuths[cycle], gaps[cycle], seq, 0);
                 // The revolution ends where the azimuth passes 0: a drop of more than half a
                 // turn from the firing before (a reordered packet only steps back a little).
@@ -221,8 +236,12 @@ impl ScanAssembler {
                 if tick.step != ClockStep::Backwards {
                     self.last_azimuth_cdeg = Some(first_azimuth);
                 }
-                for laser in 0..LASERS {
+                for (laser, &(sin_d, cos_d)) in slots.iter().enumerate() {
                     let azimuth = firing_azimuth_cdeg(azimuths[cycle], gaps[cycle], seq, laser);
+                    let sin_cos = (
+                        sin_block * cos_d + cos_block * sin_d,
+                        cos_block * cos_d - sin_block * sin_d,
+                    );
                     let t_us =
                         tick.t_us + firing_offset_us_in(mode, cycle, seq, laser).round() as i64;
                     for b in cycle..cycle + step {
@@ -231,7 +250,7 @@ impl ScanAssembler {
                             self.dropped.duplicate += 1;
                             continue;
                         }
-                        self.add(ret, laser, azimuth, t_us);
+                        self.add(ret, laser, azimuth, sin_cos, t_us);
                         contributed = true;
                     }
                 }
@@ -243,7 +262,14 @@ impl ScanAssembler {
         completed
     }
 
-    fn add(&mut self, ret: Return, laser: usize, azimuth_cdeg: f64, t_us: i64) {
+    fn add(
+        &mut self,
+        ret: Return,
+        laser: usize,
+        azimuth_cdeg: f64,
+        azimuth_sin_cos: (f64, f64),
+        t_us: i64,
+    ) {
         if self.start_us.is_none() {
             self.start_us = Some(t_us);
         }
@@ -273,9 +299,15 @@ impl ScanAssembler {
             self.dropped.overflow += 1;
             return;
         }
-        let p = self
-            .mount
-            .to_base(self.trig.sensor_point(laser, d, azimuth_cdeg));
+        let sensor = self
+            .trig
+            .sensor_point_sin_cos(laser, d, azimuth_sin_cos.0, azimuth_sin_cos.1);
+        let (sy, cy) = self.mount_yaw_sin_cos;
+        let p = [
+            self.mount.x_m + cy * sensor[0] - sy * sensor[1],
+            self.mount.y_m + sy * sensor[0] + cy * sensor[1],
+            self.mount.z_m + sensor[2],
+        ];
         self.filling.push(Point {
             x: p[0] as f32,
             y: p[1] as f32,

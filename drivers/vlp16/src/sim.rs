@@ -27,14 +27,15 @@ pub struct Firing {
     pub azimuth_rad: f64,
     /// The ray's elevation, radians, positive up.
     pub elevation_rad: f64,
-    /// The ray starts this far above the sensor origin, metres.
+    /// The ray starts this far above the sensor origin, metres ([`Self::origin`]).
     pub vertical_offset_m: f64,
     /// Laser id (0..16).
     pub laser: u8,
 }
 
 impl Firing {
-    /// The ray's origin in the sensor frame.
+    /// The ray's origin in the sensor frame: the decoder places a return at
+    /// `origin() + range * direction()` (`crate::calib`).
     pub fn origin(&self) -> [f64; 3] {
         [0.0, 0.0, self.vertical_offset_m]
     }
@@ -122,9 +123,15 @@ impl Emitter {
         self.next_packet
     }
 
-    /// Time of packet `k`'s first firing, microseconds (fractional).
+    /// Time of packet `k`'s first firing, microseconds (fractional) after `start_us` (relative,
+    /// so that an epoch-sized `start_us` costs no precision).
     fn packet_start_us(&self, k: u64) -> f64 {
-        self.start_us as f64 + k as f64 * self.packet_period_us()
+        k as f64 * self.packet_period_us()
+    }
+
+    /// A relative time as a time on the simulation's clock, rounded to the microsecond.
+    fn absolute_us(&self, relative_us: f64) -> u64 {
+        self.start_us.saturating_add(relative_us.round() as u64)
     }
 
     /// Offset of the last firing of a packet from its first.
@@ -136,12 +143,13 @@ impl Emitter {
 
     /// The time of the next packet's last firing (when [`Self::emit_until`] will send it).
     pub fn next_packet_time_us(&self) -> u64 {
-        (self.packet_start_us(self.next_packet) + self.last_firing_offset_us()).round() as u64
+        self.absolute_us(self.packet_start_us(self.next_packet) + self.last_firing_offset_us())
     }
 
-    /// The true azimuth (hundredths of a degree, clockwise, unwrapped) at `t_us`.
-    fn azimuth_cdeg_at(&self, t_us: f64) -> f64 {
-        self.start_azimuth_cdeg + self.cdeg_per_us * (t_us - self.start_us as f64)
+    /// The true azimuth (hundredths of a degree, clockwise, unwrapped) `relative_us` after
+    /// `start_us`.
+    fn azimuth_cdeg_at(&self, relative_us: f64) -> f64 {
+        self.start_azimuth_cdeg + self.cdeg_per_us * relative_us
     }
 
     /// Sends every packet whose last firing is at or before `t_us`: for each firing, in time
@@ -190,7 +198,7 @@ impl Emitter {
                         azimuth_rad -= 2.0 * PI;
                     }
                     let firing = Firing {
-                        t_us: t.round() as u64,
+                        t_us: self.absolute_us(t),
                         azimuth_rad,
                         elevation_rad: self.calib.elevation_deg[laser].to_radians(),
                         vertical_offset_m: self.calib.vertical_offset_mm[laser] * 1e-3,
@@ -221,7 +229,7 @@ impl Emitter {
         }
         DataPacket {
             blocks,
-            timestamp_us: (start.round() as u64 % u64::from(HOUR_US)) as u32,
+            timestamp_us: (self.absolute_us(start) % u64::from(HOUR_US)) as u32,
             return_mode: self.mode,
             product_id: self.product_id,
         }

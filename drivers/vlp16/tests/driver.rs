@@ -70,10 +70,16 @@ fn a_hand_built_packet_decodes_to_known_points() {
         yaw_rad: 0.3,
     };
     let mut a = assembler(mount, &[]);
-    let mut p = packet(steady(9_000, 40), 1_000_000);
-    // Block 0: laser 1 first sequence (azimuth 9000 + 40 * 2.304 / 110.592), laser 0 second
-    // sequence (9000 + 40 * 0.5 = 9020: the interpolated second sequence), laser 15 second
-    // sequence (9000 + 40 * (55.296 + 34.56) / 110.592 = 9032.5).
+    // Block azimuths 9000, 9040, 9079, 9119 ... 9435: gaps of 40 and 39 as a sensor at about
+    // 596 rpm reports them; every firing is interpolated at the packet's mean gap, 435 / 11.
+    let mut p = packet(
+        std::array::from_fn(|k| (9_000 + 40 * k - k / 2) as u16),
+        1_000_000,
+    );
+    let g = 435.0 / 11.0;
+    // Block 0: laser 1 first sequence (azimuth 9000 + g * 2.304 / 110.592), laser 0 second
+    // sequence (9000 + g * 0.5: the interpolated second sequence), laser 15 second sequence
+    // (9000 + g * (55.296 + 34.56) / 110.592).
     p.blocks[0].returns[1] = Return {
         distance_2mm: 1000,
         reflectivity: 40,
@@ -86,7 +92,7 @@ fn a_hand_built_packet_decodes_to_known_points() {
         distance_2mm: 700,
         reflectivity: 42,
     };
-    // The last block (11, azimuth 9440): its gap extrapolated from the previous one (40).
+    // The last block (11, azimuth 9435).
     p.blocks[11].returns[16 + 5] = Return {
         distance_2mm: 900,
         reflectivity: 43,
@@ -106,18 +112,18 @@ fn a_hand_built_packet_decodes_to_known_points() {
     );
     let c = Calibration::VLP16;
     let cases: [(usize, f64, f64, i64); 4] = [
-        (1, 2.0, 9_000.0 + 40.0 * 2.304 / 110.592, 1_000_000 + 2),
-        (0, 3.0, 9_020.0, 1_000_000 + 55),
+        (1, 2.0, 9_000.0 + g * 2.304 / 110.592, 1_000_000 + 2),
+        (0, 3.0, 9_000.0 + g * 0.5, 1_000_000 + 55),
         (
             15,
             1.4,
-            9_000.0 + 40.0 * (55.296 + 34.56) / 110.592,
+            9_000.0 + g * (55.296 + 34.56) / 110.592,
             1_000_000 + 90,
         ),
         (
             5,
             1.8,
-            9_440.0 + 40.0 * (55.296 + 5.0 * 2.304) / 110.592,
+            9_435.0 + g * (55.296 + 5.0 * 2.304) / 110.592,
             1_000_000 + 1_283,
         ),
     ];
@@ -348,9 +354,12 @@ fn blind_sectors_min_range_and_no_returns_are_dropped_and_counted() {
     assert!(kept.x.abs() < 0.01 && kept.y < -1.9, "{kept:?}");
 }
 
+/// The range along the ray from its origin to a vertical cylinder about the sensor's axis.
 fn cylinder_range(f: &vlp16::sim::Firing, radius: f64) -> f64 {
-    let d = f.direction();
-    radius / (d[0] * d[0] + d[1] * d[1]).sqrt()
+    let (o, d) = (f.origin(), f.direction());
+    let (a, b) = (d[0] * d[0] + d[1] * d[1], o[0] * d[0] + o[1] * d[1]);
+    let c = o[0] * o[0] + o[1] * o[1] - radius * radius;
+    (-b + (b * b - a * c).sqrt()) / a
 }
 
 #[test]
@@ -525,7 +534,7 @@ fn valid_packet_bytes() -> impl Strategy<Value = Vec<u8>> {
     )
         .prop_map(|(mut bytes, azimuths, ts, mode)| {
             for (k, a) in azimuths.iter().enumerate() {
-                bytes[100 * k..100 * k + 2].copy_from_slice(&0xFFEEu16.to_le_bytes());
+                bytes[100 * k..100 * k + 2].copy_from_slice(&[0xFF, 0xEE]);
                 bytes[100 * k + 2..100 * k + 4].copy_from_slice(&a.to_le_bytes());
             }
             bytes[1200..1204].copy_from_slice(&ts.to_le_bytes());
@@ -583,4 +592,66 @@ fn firing_azimuths_match_the_packets_sensor_convention() {
     assert!((f.azimuth_rad + PI / 2.0).abs() < 1e-9, "{f:?}");
     let d = f.direction();
     assert!(d[1] < -0.9);
+}
+
+#[test]
+fn the_simulated_sensor_over_loopback_gives_healthy_revolutions() {
+    // As in HIL: the simulated sensor sends its packets over loopback UDP; the driver drains
+    // them, checks health and assembles revolutions.
+    let mut source = UdpSource::bind("127.0.0.1:0").unwrap_or_else(|e| panic!("{e}"));
+    let to = source.local_addr().unwrap_or_else(|e| panic!("{e}"));
+    let sender = std::net::UdpSocket::bind("127.0.0.1:0").unwrap_or_else(|e| panic!("{e}"));
+    let mut emitter = Emitter::new(600.0, ReturnMode::Strongest, Calibration::VLP16, 0)
+        .unwrap_or_else(|err| panic!("{err}"));
+    let mut health = Health::new(HealthConfig::default());
+    let mut scans = assembler(Mount::IDENTITY, &[]);
+    let mut revolutions = Vec::new();
+    // 0.5 s of simulated time in 10 ms steps: send what the sensor sent, then drain it.
+    for step in 1..=50u64 {
+        let now_us = step * 10_000;
+        emitter.emit_until(
+            now_us,
+            &mut |f| Some((cylinder_range(&f, 2.5), 30)),
+            &mut |bytes, _| {
+                sender.send_to(bytes, to).unwrap_or_else(|e| panic!("{e}"));
+            },
+        );
+        let expected = emitter.packets_sent();
+        let mut received = 0;
+        for _ in 0..100 {
+            source
+                .drain(|r| {
+                    received += 1;
+                    let Ok(p) = r else {
+                        panic!("a simulated packet did not decode: {r:?}")
+                    };
+                    health.on_packet(&p, now_us * 1000);
+                    if let Some(done) = scans.push(&p, now_us * 1000) {
+                        revolutions.push(done);
+                    }
+                })
+                .unwrap_or_else(|e| panic!("{e}"));
+            if health.stats().packets == expected {
+                break;
+            }
+            std::thread::sleep(std::time::Duration::from_millis(1));
+        }
+        assert_eq!(
+            health.stats().packets,
+            expected,
+            "step {step}: {received} this step"
+        );
+    }
+    assert_eq!(
+        health.verdict(500_000_000),
+        SensorVerdict::Ok,
+        "{:?}",
+        health.stats()
+    );
+    assert!(revolutions.len() >= 4, "{revolutions:?}");
+    assert!(
+        revolutions[1..]
+            .iter()
+            .all(|r| r.complete && r.points > 28_000)
+    );
 }

@@ -18,7 +18,8 @@
         feature = "world",
         feature = "ipc",
         feature = "onboard",
-        feature = "model"
+        feature = "model",
+        feature = "lidar"
     )),
     allow(dead_code, unused_mut)
 )]
@@ -28,6 +29,8 @@ mod bytes;
 mod can;
 #[cfg(feature = "ipc")]
 mod ipc;
+#[cfg(feature = "lidar")]
+mod lidar;
 #[cfg(feature = "model")]
 mod model;
 #[cfg(feature = "ur5e")]
@@ -45,7 +48,8 @@ mod scripted;
     feature = "world",
     feature = "ipc",
     feature = "onboard",
-    feature = "model"
+    feature = "model",
+    feature = "lidar"
 ))]
 pub mod seeds;
 #[cfg(feature = "ur5e")]
@@ -59,6 +63,8 @@ mod world_files;
 pub use can::{can_wire_frame, candump_text};
 #[cfg(feature = "ipc")]
 pub use ipc::{camera_frame, ipc_messages};
+#[cfg(feature = "lidar")]
+pub use lidar::{HEADER_LEN as VLP16_HEADER_LEN, vlp16_packet};
 #[cfg(feature = "model")]
 pub use model::model_loader;
 #[cfg(feature = "onboard")]
@@ -118,6 +124,8 @@ pub fn targets() -> Vec<Target> {
     ]);
     #[cfg(feature = "model")]
     all.push(("model_loader", model_loader));
+    #[cfg(feature = "lidar")]
+    all.push(("vlp16_packet", vlp16_packet));
     all
 }
 

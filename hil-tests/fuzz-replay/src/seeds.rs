@@ -601,6 +601,72 @@ fn camera_frame() -> Vec<Vec<u8>> {
     seeds
 }
 
+/// Simulated VLP-16 packet streams (`vlp16::sim::Emitter` against a 3 m cylinder, a sector
+/// without returns): across the azimuth wrap, in dual-return mode, with a foreign product id,
+/// across the hourly timestamp wrap, and with a short and a malformed datagram among them.
+fn vlp16_packet() -> Vec<Vec<u8>> {
+    use vlp16::calib::Calibration;
+    use vlp16::packet::ReturnMode;
+    use vlp16::sim::Emitter;
+    let stream = |config: u8, emitter: Result<Emitter, vlp16::sim::SimError>, packets: usize| {
+        let mut emitter = match emitter {
+            Ok(e) => e,
+            Err(e) => panic!("seed emitter: {e}"),
+        };
+        // 1.33 ms between arrivals, in 10 us units.
+        let mut input = vec![config, 0, 133];
+        let mut sent = 0;
+        let mut t_us = emitter.next_packet_time_us();
+        while sent < packets {
+            emitter.emit_until(
+                t_us,
+                &mut |f| {
+                    let d = f.direction();
+                    let horizontal = d[0].hypot(d[1]);
+                    (f.azimuth_rad.abs() > 0.3).then(|| (3.0 / horizontal, 30 + f.laser))
+                },
+                &mut |bytes, _| {
+                    if sent < packets {
+                        input.extend_from_slice(bytes);
+                        sent += 1;
+                    }
+                },
+            );
+            t_us += 1_000;
+        }
+        input
+    };
+    let c = Calibration::VLP16;
+    let mut seeds = vec![
+        stream(
+            0,
+            Emitter::new(600.0, ReturnMode::Strongest, c, 0)
+                .map(|e| e.with_start_azimuth_deg(355.0)),
+            3,
+        ),
+        stream(
+            3,
+            Emitter::new(600.0, ReturnMode::Dual, c, 0).map(|e| e.with_start_azimuth_deg(358.0)),
+            3,
+        ),
+        stream(
+            4,
+            Emitter::new(1200.0, ReturnMode::Last, c, 0).map(|e| e.with_product_id(0x28)),
+            2,
+        ),
+        stream(
+            8,
+            Emitter::new(1200.0, ReturnMode::Strongest, c, 3_599_998_000),
+            2,
+        ),
+    ];
+    let mut mixed = stream(0, Emitter::new(300.0, ReturnMode::Strongest, c, 10_000), 3);
+    mixed[3 + 1206 + 700] = 0; // block 7's flag of the second packet
+    mixed.extend_from_slice(&[0xFF, 0xEE, 0x10, 0x00]);
+    seeds.push(mixed);
+    seeds
+}
+
 fn model_loader() -> Vec<Vec<u8>> {
     [
         "models/fcn-infer/tests/fixtures/scale.onnx",
@@ -639,5 +705,6 @@ pub fn seeds() -> Vec<(&'static str, Vec<Vec<u8>>)> {
         ("ipc_messages", ipc_messages()),
         ("camera_frame", camera_frame()),
         ("model_loader", model_loader()),
+        ("vlp16_packet", vlp16_packet()),
     ]
 }

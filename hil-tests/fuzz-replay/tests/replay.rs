@@ -145,6 +145,16 @@ fn seeds_are_valid_inputs() {
             assert!(log.is_ok_and(|l| l.messages.len() == 6 && l.truncated.is_none()));
         }
     }
+    for seed in of("vlp16_packet") {
+        let packets = seed[fuzz_replay::VLP16_HEADER_LEN..].chunks(1206);
+        let good = packets
+            .filter(|p| vlp16::DataPacket::decode(p).is_ok())
+            .count();
+        assert!(
+            good >= 2,
+            "a VLP-16 seed has at least two packets that decode"
+        );
+    }
     let models = of("model_loader");
     for model in [&models[0], &models[5]] {
         let loaded = fcn_infer::FcnModel::from_bytes(model, Path::new("seed.onnx"));
