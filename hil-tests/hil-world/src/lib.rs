@@ -19,6 +19,7 @@ pub mod fixes;
 pub mod mission;
 pub mod objects;
 pub mod report;
+pub mod suite;
 
 use std::time::{Duration, Instant};
 
