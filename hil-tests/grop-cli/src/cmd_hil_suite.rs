@@ -131,7 +131,8 @@ pub fn run(args: &Args, label: &str, dir: &Path) -> anyhow::Result<()> {
     let table = table(label, args, &rows, failures.len(), started.elapsed());
     println!("{table}");
     let csv = args.out_dir.join("scenes.csv");
-    std::fs::write(&csv, scenes_csv(&rows)).with_context(|| format!("writing {}", csv.display()))?;
+    std::fs::write(&csv, scenes_csv(&rows))
+        .with_context(|| format!("writing {}", csv.display()))?;
     let md = args.out_dir.join("suite.md");
     std::fs::write(&md, &table).with_context(|| format!("writing {}", md.display()))?;
     Ok(())
@@ -181,7 +182,9 @@ fn table(label: &str, args: &Args, rows: &[SceneRow], failed: usize, wall: Durat
         sum(&|r| r.misplaced),
         sum(&|r| r.not_attempted),
         sum(&|r| r.contacts),
-        rows.iter().filter(|r| r.end == MissionEnd::Finished).count(),
+        rows.iter()
+            .filter(|r| r.end == MissionEnd::Finished)
+            .count(),
         rows.iter().map(|r| r.sim_s).sum::<f64>() / rows.len() as f64
     );
     s

@@ -176,4 +176,8 @@ pub struct WorldReport {
     /// Fastest the base truly drove (m/s) and turned (rad/s).
     #[serde(default)]
     pub max_base_speed: (f64, f64),
+    /// Objects never attempted: still at the loading station when the mission ended (the
+    /// planner could not plan them, or the mission ended first).
+    #[serde(default)]
+    pub not_attempted: Vec<usize>,
 }

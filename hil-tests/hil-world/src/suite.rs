@@ -14,14 +14,13 @@ pub const SUITES: [(&str, &str); 1] = [("handmade", "hil-tests/layouts")];
 
 /// The folder of the named suite (an absolute path inside this checkout).
 pub fn suite_dir(name: &str) -> anyhow::Result<PathBuf> {
-    let (_, rel) = SUITES
-        .iter()
-        .find(|(n, _)| *n == name)
-        .with_context(|| {
-            let known: Vec<&str> = SUITES.iter().map(|(n, _)| *n).collect();
-            format!("unknown suite {name:?} (known: {})", known.join(", "))
-        })?;
-    Ok(Path::new(env!("CARGO_MANIFEST_DIR")).join("../..").join(rel))
+    let (_, rel) = SUITES.iter().find(|(n, _)| *n == name).with_context(|| {
+        let known: Vec<&str> = SUITES.iter().map(|(n, _)| *n).collect();
+        format!("unknown suite {name:?} (known: {})", known.join(", "))
+    })?;
+    Ok(Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../..")
+        .join(rel))
 }
 
 /// One scene of a suite.
@@ -41,11 +40,7 @@ pub fn load_dir(dir: &Path) -> anyhow::Result<Vec<SuiteScene>> {
     let mut paths: Vec<PathBuf> = std::fs::read_dir(dir)
         .with_context(|| format!("reading the scene folder {}", dir.display()))?
         .filter_map(|e| e.ok().map(|e| e.path()))
-        .filter(|p| {
-            p.is_file()
-                && p.extension()
-                    .is_some_and(|e| e == "toml" || e == "json")
-        })
+        .filter(|p| p.is_file() && p.extension().is_some_and(|e| e == "toml" || e == "json"))
         .collect();
     paths.sort();
     anyhow::ensure!(

@@ -519,3 +519,53 @@ fn an_arm_that_fails_to_park_aborts() {
     );
     assert_eq!(b.out.velocity, Twist::ZERO);
 }
+
+#[test]
+fn each_load_step_asks_the_station_once_for_its_own_mask() {
+    let mut b = Bench::with_objects(3);
+    // Standing at the station (1, 1): two load steps in a row (two trips' loads).
+    assert!(
+        b.running_with(&[
+            TaskStep::load(0b001, 1.0, 1.0),
+            TaskStep::load(0b100, 1.0, 1.0)
+        ])
+        .is_none(),
+        "no leg before a load at the start"
+    );
+    let mut asked = Vec::new();
+    for _ in 0..400 {
+        b.step(|_| {});
+        if let Some(r) = b.out.load_request {
+            asked.push((
+                r.request_id,
+                r.object_mask,
+                r.station_m,
+                r.plan_id,
+                r.step_index,
+            ));
+        }
+        if b.core.state() == MissionState::Finished {
+            break;
+        }
+    }
+    // The first request went out in the cycle the plan was taken (inside running_with).
+    let first = b
+        .events
+        .iter()
+        .filter(|(k, _)| *k == EventKind::LoadRequested)
+        .map(|(_, d)| d.as_str())
+        .collect::<Vec<_>>();
+    assert_eq!(first.len(), 2, "{first:?}");
+    assert!(
+        first[0].contains("request 1") && first[0].contains("0x1"),
+        "{first:?}"
+    );
+    assert_eq!(
+        asked,
+        vec![(2, 0b100, [1.0, 1.0], 7, 1)],
+        "the second, once"
+    );
+    assert_eq!(b.core.state(), MissionState::Finished);
+    // The tray holds the two objects in the slots the station fills (object order).
+    assert_eq!(&b.core.slots[..3], &[Some(0), Some(2), None]);
+}
