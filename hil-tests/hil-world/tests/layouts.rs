@@ -112,7 +112,6 @@ mod closed_loop {
     /// Issue 26, item 2: a target whose view reaches past the camera frame (outside the room:
     /// wall) no longer stops the mission: it ends with PlanFinished, none left at the station.
     #[test]
-    #[ignore = "issue 26 item 2: planned in the next commit"]
     fn a_view_past_the_frame_in_a_small_room_is_planned() {
         let r = run("02-", 3);
         assert_eq!(r.end, MissionEnd::Finished, "events: {:#?}", r.events);

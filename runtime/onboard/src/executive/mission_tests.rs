@@ -569,3 +569,22 @@ fn each_load_step_asks_the_station_once_for_its_own_mask() {
     // The tray holds the two objects in the slots the station fills (object order).
     assert_eq!(&b.core.slots[..3], &[Some(0), Some(2), None]);
 }
+
+#[test]
+fn an_empty_plan_finishes_the_mission_at_once() {
+    // The planner could plan none of the objects (e.g. views unknown past the camera frame,
+    // each reported by the planner): an empty plan ends the mission, the base never drives.
+    let mut b = Bench::new();
+    let request = b.until_request();
+    let p = plan(request, &[]);
+    b.step(|i| {
+        i.plans = std::slice::from_ref(&p);
+        i.skill = Some(Ok(SkillStatus::Done { object_held: false }));
+    });
+    for _ in 0..10 {
+        b.step(|_| {});
+    }
+    assert_eq!(b.core.state(), MissionState::Finished);
+    assert!(b.saw(EventKind::PlanFinished), "{:?}", b.events);
+    assert_eq!(b.out.velocity, Twist::ZERO);
+}
