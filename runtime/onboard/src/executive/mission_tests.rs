@@ -588,3 +588,61 @@ fn an_empty_plan_finishes_the_mission_at_once() {
     assert!(b.saw(EventKind::PlanFinished), "{:?}", b.events);
     assert_eq!(b.out.velocity, Twist::ZERO);
 }
+
+#[test]
+fn a_gripper_that_closes_on_nothing_is_reported_and_nothing_is_placed() {
+    use crate::executive::unload::{PlaceJoints, UnloadPlan};
+    let mut b = Bench::with_objects(1);
+    // At the station (1, 1): load object 0, then unload it right here (no leg between).
+    let unload = TaskStep::unload(
+        0,
+        grop_ipc::TableSide::Near,
+        [1.5, 1.6, 1.3],
+        [1.0, 1.0, 0.0],
+        0.9,
+    );
+    assert!(
+        b.running_with(&[TaskStep::load(0b1, 1.0, 1.0), unload])
+            .is_none()
+    );
+    let carry = b.core.tray.carry;
+    let mut answer: Option<Answer> = None;
+    let mut skill = None;
+    for _ in 0..2000 {
+        // A few answers over the test's lifetime, leaked for the borrow (as the fixes are).
+        let a: Option<&'static Answer> = answer.take().map(|a| &*Box::leak(Box::new(a)));
+        let s = skill.take();
+        b.step(|i| {
+            i.answer = a;
+            i.skill = s;
+        });
+        if let Some(Job::Unload { id, .. }) = b.out.job {
+            let joints = PlaceJoints {
+                place: carry,
+                above: carry,
+            };
+            answer = Some(Answer::Unload(id, Ok(UnloadPlan::direct(joints, carry))));
+        }
+        // Every arm skill ends at once; the gripper never feels an object (the slot is empty).
+        if b.out.arm != ArmCommand::None {
+            skill = Some(Ok(SkillStatus::Done { object_held: false }));
+        }
+        if b.saw(EventKind::UnloadFailed) {
+            break;
+        }
+    }
+    let mismatch: Vec<&String> = b
+        .events
+        .iter()
+        .filter(|(k, _)| *k == EventKind::TrayMismatch)
+        .map(|(_, d)| d)
+        .collect();
+    assert_eq!(mismatch.len(), 1, "{:?}", b.events);
+    assert!(
+        mismatch[0].contains("object 0") && mismatch[0].contains("slot 0"),
+        "{mismatch:?}"
+    );
+    assert!(!b.saw(EventKind::UnloadSucceeded));
+    assert_eq!(b.core.stats().unloads_ok, 0);
+    assert_eq!(b.core.slots[0], None, "the belief is corrected");
+}
