@@ -656,6 +656,10 @@ impl World {
                     // A row stride shorter than a row: no consumer may read pixels from it.
                     header.row_stride_bytes = camera.width_px;
                 }
+                if injector.camera_narrow {
+                    // The same rows, fewer columns: the frame's west quarter only.
+                    header.width_px = (camera.width_px / 4).max(1);
+                }
                 // The furniture does not move: render once, publish the same picture.
                 if !rendered_once {
                     rendered_once = true;
@@ -955,6 +959,7 @@ impl World {
                 }
                 FaultKind::ClockJump => inj.jump = Some(()),
                 FaultKind::LocalisationJump => inj.fix_jump = true,
+                FaultKind::CameraNarrow => inj.camera_narrow = true,
             }
         }
         if inj.burst_until.is_some_and(|until| now >= until) {
@@ -1003,6 +1008,8 @@ struct Injector {
     intruder_next: Duration,
     intruder_frames: u64,
     camera_corrupt_until: Option<Duration>,
+    /// The camera's frames cover only the west quarter of the room's frame.
+    camera_narrow: bool,
     fix_jump: bool,
     jump: Option<()>,
 }
