@@ -8,8 +8,8 @@
 //! against the furniture, an overhead camera publishing real-size RGB frames on
 //! `camera/frame`, and localisation fixes on `base/pose` whose per-leg error makes the
 //! realised stop follow the robot file's navigation noise ([`fixes`]). Between steps it lets
-//! the onboard processes (planner, executive) run in lock-step. It listens to `events` and
-//! `plan/task`, notices dead processes through the clock, and writes a [`report`].
+//! the onboard processes (planner, executive) run in lock-step. It listens to `events`,
+//! `plan/task` and `load/request` (the station loads what the executive asks), notices dead processes through the clock, and writes a [`report`].
 //!
 //! The onboard binaries run against it unchanged: they see a CAN bus, a UR5e, iceoryx2 topics
 //! and a clock.
