@@ -7,8 +7,8 @@ use std::cell::RefCell;
 
 use grop_ipc::{
     ArmIoMsg, ArmStateMsg, BasePoseMsg, BaseStateMsg, CAMERA_MAX_BYTES, CameraFrameHeader,
-    CameraFrameMsg, EVENT_DETAIL_CAPACITY, EventMsg, HeartbeatMsg, HeatmapsMsg, MAX_HEATMAPS,
-    MAX_TASK_STEPS, ReplanRequestMsg, TaskPlanMsg, TaskStep, Topic,
+    CameraFrameMsg, EVENT_DETAIL_CAPACITY, EventMsg, HeartbeatMsg, HeatmapsMsg, LoadRequestMsg,
+    MAX_HEATMAPS, MAX_TASK_STEPS, ReplanRequestMsg, TaskPlanMsg, TaskStep, Topic,
 };
 use world::camera::{FrameLayout, OverheadCamera, PixelFormat, cut_view};
 use world::view::{CROP_COLS, CROP_ROWS, Side};
@@ -49,6 +49,8 @@ unsafe impl AnyBitPattern for CameraFrameHeader {}
 unsafe impl AnyBitPattern for ArmIoMsg {}
 // SAFETY: as above.
 unsafe impl AnyBitPattern for TaskStep {}
+// SAFETY: as above.
+unsafe impl AnyBitPattern for LoadRequestMsg {}
 
 /// The bytes of a value (equality of values with NaNs in them is equality of their bytes).
 fn raw<T: AnyBitPattern>(value: &T) -> &[u8] {
@@ -130,14 +132,14 @@ fn bytes_of<T: AnyBitPattern>(msg: &T) -> Vec<u8> {
     unsafe { std::slice::from_raw_parts((msg as *const T).cast::<u8>(), size_of::<T>()) }.to_vec()
 }
 
-/// A valid message of the type [`ipc_messages`] selects with `which` (0..=9), as bytes; the
+/// A valid message of the type [`ipc_messages`] selects with `which` (0..=10), as bytes; the
 /// large ones cut after their meaningful part (the rest reads as zeros).
 pub(crate) fn bytes_of_message(which: u8) -> Vec<u8> {
     use grop_ipc::{
         ArmSafety, BaseMode, EventKind, PixelFormat as IpcFormat, PoseFixKind, ProcessRole,
         ReplanReason, TableSide, TaskStep,
     };
-    let mut bytes = match which % 10 {
+    let mut bytes = match which % MESSAGE_TYPES {
         0 => {
             let mut msg = zeroed::<BaseStateMsg>();
             msg.seq = 9;
@@ -200,6 +202,7 @@ pub(crate) fn bytes_of_message(which: u8) -> Vec<u8> {
             msg.set_role(ProcessRole::Executive);
             bytes_of(&*msg)
         }
+        10 => bytes_of(&LoadRequestMsg::new(3, 9, 2, 4, 0b1010, [0.0, 1.05])),
         9 => {
             let mut msg = zeroed::<ArmIoMsg>();
             msg.seq = 12;
@@ -227,14 +230,17 @@ pub(crate) fn bytes_of_message(which: u8) -> Vec<u8> {
     bytes
 }
 
-/// First byte: which message type (10 of them); the rest: its bytes (zero-filled to the type's size). Every
+/// Message types [`ipc_messages`] tells apart by its first byte.
+pub(crate) const MESSAGE_TYPES: u8 = 11;
+
+/// First byte: which message type (11 of them); the rest: its bytes (zero-filled to the type's size). Every
 /// checked accessor either errors or returns what the raw fields say, within the capacities;
 /// values that check, written back through the setters, read back the same.
 pub fn ipc_messages(data: &[u8]) {
     let Some((&which, bytes)) = data.split_first() else {
         return;
     };
-    match which % 10 {
+    match which % MESSAGE_TYPES {
         0 => base_state(bytes),
         1 => arm_state(bytes),
         2 => event(bytes),
@@ -244,7 +250,35 @@ pub fn ipc_messages(data: &[u8]) {
         6 => base_pose(bytes),
         7 => heartbeat(bytes),
         8 => camera_message(bytes),
-        _ => arm_io(bytes),
+        9 => arm_io(bytes),
+        _ => load_request(bytes),
+    }
+}
+
+fn load_request(bytes: &[u8]) {
+    with_message::<LoadRequestMsg, _>(bytes, check_load_request);
+}
+
+fn check_load_request(msg: &LoadRequestMsg) {
+    let _ = msg.stamp_ns();
+    match msg.station() {
+        Ok(station) => {
+            assert!(station.iter().all(|v| v.is_finite()));
+            let again = LoadRequestMsg::new(
+                msg.request_id,
+                msg.stamp_ns,
+                msg.plan_id,
+                msg.step_index,
+                msg.object_mask,
+                station,
+            );
+            assert_eq!(again.station(), Ok(station));
+            assert_eq!(again.object_mask, msg.object_mask);
+        }
+        Err(e) => {
+            let _ = e.to_string();
+            assert!(msg.station_m.iter().any(|v| !v.is_finite()));
+        }
     }
 }
 

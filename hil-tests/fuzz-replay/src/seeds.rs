@@ -562,7 +562,7 @@ fn mission_log() -> Vec<Vec<u8>> {
 }
 
 fn ipc_messages() -> Vec<Vec<u8>> {
-    (0..10u8)
+    (0..crate::ipc::MESSAGE_TYPES)
         .map(|which| {
             let mut out = vec![which];
             out.extend(bytes_of_message(which));

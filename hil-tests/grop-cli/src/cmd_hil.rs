@@ -69,6 +69,15 @@ pub struct Args {
     #[arg(long)]
     #[serde(default)]
     pub no_lidar: bool,
+    /// Run a named scene suite instead of the task suite: `handmade` (the hand-made layouts in
+    /// `hil-tests/layouts/`, docs/hil.md). One mission per scene, one row per scene.
+    #[arg(long, value_name = "NAME", conflicts_with = "scenes")]
+    #[serde(default)]
+    pub suite: Option<String>,
+    /// Run every scene file (.toml, .json) of this folder as one mission each (as `--suite`).
+    #[arg(long, value_name = "DIR")]
+    #[serde(default)]
+    pub scenes: Option<PathBuf>,
 }
 
 /// One task's results.
@@ -90,7 +99,7 @@ struct Row {
     legs: Vec<[f64; 2]>,
 }
 
-fn model_path(p: &std::path::Path) -> anyhow::Result<PathBuf> {
+pub(crate) fn model_path(p: &std::path::Path) -> anyhow::Result<PathBuf> {
     std::fs::canonicalize(p)
         .or_else(|_| {
             std::fs::canonicalize(
@@ -104,6 +113,13 @@ fn model_path(p: &std::path::Path) -> anyhow::Result<PathBuf> {
 
 /// Runs the comparison.
 pub fn run(args: Args) -> anyhow::Result<()> {
+    if let Some(name) = &args.suite {
+        let dir = hil_world::suite::suite_dir(name)?;
+        return crate::cmd_hil_suite::run(&args, name, &dir);
+    }
+    if let Some(dir) = &args.scenes {
+        return crate::cmd_hil_suite::run(&args, &dir.display().to_string(), dir);
+    }
     let run_started = Instant::now();
     let method = MethodKind::parse(&args.method)
         .with_context(|| format!("unknown --method {:?}", args.method))?;
@@ -272,7 +288,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .with_context(|| format!("writing {}", args.out_dir.join("summary.md").display()))?;
     if args.write_docs {
         let doc = PathBuf::from("docs/hil.md");
-        std::fs::write(&doc, format!("{}\n{summary}", DOC_HEAD))
+        // The hand-made suite's section (written by hand from `--suite handmade` runs) stays.
+        let kept = std::fs::read_to_string(&doc)
+            .ok()
+            .and_then(|old| old.find(SUITE_SECTION).map(|at| old[at..].to_owned()))
+            .unwrap_or_default();
+        let sep = if kept.is_empty() { "" } else { "\n" };
+        std::fs::write(&doc, format!("{}\n{summary}{sep}{kept}", DOC_HEAD))
             .with_context(|| format!("writing {}", doc.display()))?;
         println!("wrote {}", doc.display());
     }
@@ -403,6 +425,8 @@ pub fn merge(set: &[(PathBuf, ShardManifest)], out: &std::path::Path) -> anyhow:
         no_build: true,
         shard: None,
         no_lidar: c["no_lidar"].as_bool().unwrap_or(false),
+        suite: None,
+        scenes: None,
     };
     let staged = trial_sim::shard::MergeDir::create(out)?;
     let mut rows = Vec::new();
@@ -509,6 +533,9 @@ fn mean_se(v: &[f64]) -> (f64, f64) {
     };
     (m, (var / n).sqrt())
 }
+
+/// Where docs/hil.md's hand-made suite section starts (kept by `--write-docs`).
+const SUITE_SECTION: &str = "## The hand-made layout suite";
 
 const DOC_HEAD: &str = "# Closed loop against the calculation (`grop hil`)\n\n\
 Tasks of the 420-task evaluation suite run twice: in closed loop (the world process with the \

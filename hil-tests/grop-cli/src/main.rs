@@ -15,6 +15,7 @@ mod cmd_demo_closed_loop;
 mod cmd_eval;
 mod cmd_eval_settings;
 mod cmd_hil;
+mod cmd_hil_suite;
 mod cmd_latency;
 mod cmd_merge;
 mod cmd_model_eval;

@@ -466,3 +466,53 @@ fn datagen_refuses_to_replace_a_folder_that_is_not_a_dataset() {
 fn image_header(path: &std::path::Path) -> Vec<u8> {
     std::fs::read(path).unwrap().into_iter().take(8).collect()
 }
+
+#[test]
+fn hil_runs_a_folder_of_scene_files_one_mission_each_and_names_a_bad_folder() {
+    let dir = tempfile::tempdir().unwrap();
+    let scenes = dir.path().join("scenes");
+    std::fs::create_dir_all(&scenes).unwrap();
+    let layouts = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../layouts");
+    std::fs::copy(
+        layouts.join("08-start-off-to-the-side.toml"),
+        scenes.join("side.toml"),
+    )
+    .unwrap();
+    let out_dir = dir.path().join("out");
+    let o = grop(&[
+        "hil",
+        "--model",
+        &model(),
+        "--scenes",
+        scenes.to_str().unwrap(),
+        "--out-dir",
+        out_dir.to_str().unwrap(),
+        "--jobs",
+        "1",
+    ]);
+    let out = text(&o);
+    assert!(o.status.success(), "{out}");
+    assert!(out.contains("| scene | placed (end state)"), "{out}");
+    let row = out
+        .lines()
+        .find(|l| l.starts_with("| side |"))
+        .unwrap_or_else(|| panic!("no row for the scene in:\n{out}"));
+    assert!(row.contains("/ 3"), "{row}");
+    let csv = std::fs::read_to_string(out_dir.join("scenes.csv")).unwrap();
+    assert!(csv.lines().nth(1).unwrap().starts_with("side,3,"), "{csv}");
+    assert!(out_dir.join("scene-side").is_dir());
+
+    // An empty folder, a bad scene file and an unknown suite are named.
+    let empty = dir.path().join("empty");
+    std::fs::create_dir_all(&empty).unwrap();
+    let o = grop(&["hil", "--scenes", empty.to_str().unwrap(), "--no-build"]);
+    assert!(!o.status.success());
+    assert!(text(&o).contains("no scene files"), "{}", text(&o));
+    std::fs::write(scenes.join("bad.toml"), "format_version = 1\nname = 3\n").unwrap();
+    let o = grop(&["hil", "--scenes", scenes.to_str().unwrap(), "--no-build"]);
+    assert!(!o.status.success());
+    assert!(text(&o).contains("bad.toml"), "{}", text(&o));
+    let o = grop(&["hil", "--suite", "nope", "--no-build"]);
+    assert!(!o.status.success());
+    assert!(text(&o).contains("unknown suite \"nope\""), "{}", text(&o));
+}

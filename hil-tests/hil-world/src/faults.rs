@@ -73,11 +73,15 @@ pub enum FaultKind {
     ClockJump,
     /// One global localisation fix 1.5 m off the truth.
     LocalisationJump,
+    /// The overhead camera sees only the west quarter of its frame from then on (its header
+    /// says so: a camera that no longer covers the room); the planner must treat the rest of
+    /// the room as unknown.
+    CameraNarrow,
 }
 
 impl FaultKind {
     /// Every kind, in the order of docs/reliability.md.
-    pub const ALL: [FaultKind; 20] = [
+    pub const ALL: [FaultKind; 21] = [
         FaultKind::CanLossBurst,
         FaultKind::CanLossRandom,
         FaultKind::CanDuplicate,
@@ -98,6 +102,7 @@ impl FaultKind {
         FaultKind::CameraCorrupt,
         FaultKind::ClockJump,
         FaultKind::LocalisationJump,
+        FaultKind::CameraNarrow,
     ];
 
     /// The command-line name (`can-loss-burst`).
@@ -123,6 +128,7 @@ impl FaultKind {
             FaultKind::CameraCorrupt => "camera-corrupt",
             FaultKind::ClockJump => "clock-jump",
             FaultKind::LocalisationJump => "localisation-jump",
+            FaultKind::CameraNarrow => "camera-narrow",
         }
     }
 
@@ -138,7 +144,7 @@ impl FaultKind {
             // Injected while the gripper is idle, the fault is cleared by the unload's
             // activation (as a Robotiq's is): strike while it works.
             FaultKind::GripperFault => Trigger::Gripping,
-            FaultKind::CameraCorrupt => Trigger::At(Duration::ZERO),
+            FaultKind::CameraCorrupt | FaultKind::CameraNarrow => Trigger::At(Duration::ZERO),
             _ => Trigger::Driving,
         }
     }

@@ -8,8 +8,8 @@
 //! against the furniture, an overhead camera publishing real-size RGB frames on
 //! `camera/frame`, and localisation fixes on `base/pose` whose per-leg error makes the
 //! realised stop follow the robot file's navigation noise ([`fixes`]). Between steps it lets
-//! the onboard processes (planner, executive) run in lock-step. It listens to `events` and
-//! `plan/task`, notices dead processes through the clock, and writes a [`report`].
+//! the onboard processes (planner, executive) run in lock-step. It listens to `events`,
+//! `plan/task` and `load/request` (the station loads what the executive asks), notices dead processes through the clock, and writes a [`report`].
 //!
 //! The onboard binaries run against it unchanged: they see a CAN bus, a UR5e, iceoryx2 topics
 //! and a clock.
@@ -20,14 +20,15 @@ pub mod lidar;
 pub mod mission;
 pub mod objects;
 pub mod report;
+pub mod suite;
 
 use std::time::{Duration, Instant};
 
 use can_bus::VirtualCanBus;
 use grop_clock::{HostConfig, SimClockHost};
 use grop_ipc::{
-    BasePoseMsg, CameraFrameMsg, EventMsg, HeartbeatMsg, IpcNode, PoseFixKind, ProcessRole,
-    TaskPlanMsg, TaskStepKind, TopicPublisher, TopicSubscriber,
+    BasePoseMsg, CameraFrameMsg, EventMsg, HeartbeatMsg, IpcNode, LoadRequestMsg, PoseFixKind,
+    ProcessRole, TaskPlanMsg, TaskStepKind, TopicPublisher, TopicSubscriber,
 };
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 use sim_rmp::{SimRmp, SimRmpNode};
@@ -175,6 +176,7 @@ struct Ports {
     health: TopicPublisher<HeartbeatMsg>,
     events: TopicSubscriber<EventMsg>,
     plans: TopicSubscriber<TaskPlanMsg>,
+    loads: TopicSubscriber<LoadRequestMsg>,
 }
 
 /// The world, built and listening; [`World::run`] runs the mission.
@@ -249,6 +251,7 @@ impl World {
             health: node.publisher().map_err(ipc)?,
             events: node.subscriber().map_err(ipc)?,
             plans: node.subscriber().map_err(ipc)?,
+            loads: node.subscriber().map_err(ipc)?,
         };
         let targets: Vec<[f64; 3]> = config.scene.targets.iter().map(|t| t.as_array()).collect();
         let objects = ObjectTracker::new(&targets, &config.tray_slots, config.judge);
@@ -340,6 +343,7 @@ impl World {
             max_base_speed: (0.0, 0.0),
             min_base_clearance: None,
             base_blocks: 0,
+            not_attempted: Vec::new(),
         };
         let mut injector = Injector::default();
         let mut frame_id = 0u64;
@@ -354,6 +358,8 @@ impl World {
         let mut mission_start: Option<Duration> = None;
         let mut ended_at: Option<Duration> = None;
         let mut latest_plan: Vec<grop_ipc::TaskStep> = Vec::new();
+        // The load request the station has not served yet (the newest; one load per request).
+        let mut pending_load: Option<LoadRequestMsg> = None;
         let mut still_s = 0.0_f64;
         let mut was_moving = false;
         let mut leg_recorded = true;
@@ -578,31 +584,38 @@ impl World {
                 }
             }
 
-            // Objects: loading at the station, gripper, release.
+            // Objects: loading at the station (exactly what the executive asks for, once per
+            // request, once the base stands there), gripper, release.
+            while let Ok(Some(req)) = self.ports.loads.try_recv() {
+                if let Some(old) = pending_load.replace(*req) {
+                    self.world_event(
+                        grop_ipc::EventKind::Loaded,
+                        now,
+                        &format!(
+                            "load request {} superseded by {} before the base stood at the station: nothing loaded for it",
+                            old.request_id, req.request_id
+                        ),
+                    );
+                }
+            }
             let station = cfg.scene.loading_station;
-            if still_s >= 1.0
-                && (pose.x_m - station.x_m).hypot(pose.y_m - station.y_m) < 0.5
-                && self.objects.any_at_station()
-            {
-                let mask = latest_plan
-                    .iter()
-                    .filter(|s| s.kind() == Ok(TaskStepKind::Load))
-                    .map(|s| s.load_mask)
-                    .find(|m| {
-                        self.objects.objects().iter().any(|o| {
-                            o.index < 64
-                                && m & (1u64 << o.index) != 0
-                                && o.state == objects::ObjectState::AtStation
-                        })
-                    });
-                if let Some(mask) = mask {
-                    if let Some(ObjectEvent::Loaded { mask }) = self.objects.load(mask) {
-                        self.world_event(
-                            grop_ipc::EventKind::Loaded,
-                            now,
-                            &format!("objects {mask:#x} put on the tray"),
-                        );
-                    }
+            if still_s >= 1.0 && (pose.x_m - station.x_m).hypot(pose.y_m - station.y_m) < 0.5 {
+                if let Some(req) = pending_load.take() {
+                    let detail = match self.objects.load(req.object_mask) {
+                        Some(ObjectEvent::Loaded { mask }) if mask == req.object_mask => format!(
+                            "load request {}: objects {mask:#x} put on the tray",
+                            req.request_id
+                        ),
+                        Some(ObjectEvent::Loaded { mask }) => format!(
+                            "load request {}: objects {mask:#x} put on the tray of {:#x} asked for (the rest is not at the station or the tray is full)",
+                            req.request_id, req.object_mask
+                        ),
+                        _ => format!(
+                            "load request {}: nothing of {:#x} at the station or room on the tray",
+                            req.request_id, req.object_mask
+                        ),
+                    };
+                    self.world_event(grop_ipc::EventKind::Loaded, now, &detail);
                 }
             }
             let table = &cfg.scene.banquet_table;
@@ -695,6 +708,10 @@ impl World {
                 if corrupt {
                     // A row stride shorter than a row: no consumer may read pixels from it.
                     header.row_stride_bytes = camera.width_px;
+                }
+                if injector.camera_narrow {
+                    // The same rows, fewer columns: the frame's west quarter only.
+                    header.width_px = (camera.width_px / 4).max(1);
                 }
                 // The furniture does not move: render once, publish the same picture.
                 if !rendered_once {
@@ -885,6 +902,12 @@ impl World {
         }
 
         report.objects = self.objects.objects().to_vec();
+        report.not_attempted = report
+            .objects
+            .iter()
+            .filter(|o| o.state == objects::ObjectState::AtStation)
+            .map(|o| o.index)
+            .collect();
         let verdicts: Vec<Verdict> = report
             .objects
             .iter()
@@ -990,6 +1013,7 @@ impl World {
                 }
                 FaultKind::ClockJump => inj.jump = Some(()),
                 FaultKind::LocalisationJump => inj.fix_jump = true,
+                FaultKind::CameraNarrow => inj.camera_narrow = true,
             }
         }
         if inj.burst_until.is_some_and(|until| now >= until) {
@@ -1038,6 +1062,8 @@ struct Injector {
     intruder_next: Duration,
     intruder_frames: u64,
     camera_corrupt_until: Option<Duration>,
+    /// The camera's frames cover only the west quarter of the room's frame.
+    camera_narrow: bool,
     fix_jump: bool,
     jump: Option<()>,
 }

@@ -1,8 +1,9 @@
 //! The objects: at the loading station, on the base's tray, held by the gripper, released, and
 //! judged against their targets.
 //!
-//! Loading: while the base stands at the loading station, people put the objects of the plan's
-//! load step on the tray, slot by slot (the same slot order the executive assumes). Holding:
+//! Loading: while the base stands at the loading station, people put the objects the executive
+//! asks for (`load/request`, once per request) on the tray, slot by slot (the same slot order
+//! the executive assumes). Holding:
 //! the gripper closes on an object when its fingers are around it (the tool centre point within
 //! `grasp_radius_m` of the object); the object then moves with the tool. Releasing: when the
 //! fingers open, the object stays where the tool centre point is. Judging: an object counts as

@@ -184,4 +184,8 @@ pub struct WorldReport {
     /// Times the world held the base back at furniture (drives stalled).
     #[serde(default)]
     pub base_blocks: u64,
+    /// Objects never attempted: still at the loading station when the mission ended (the
+    /// planner could not plan them, or the mission ended first).
+    #[serde(default)]
+    pub not_attempted: Vec<usize>,
 }

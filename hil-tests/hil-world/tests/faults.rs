@@ -370,6 +370,54 @@ fn corrupt_camera_frames_are_refused_and_the_mission_waits_for_good_ones() {
     assert_eq!(report.end, MissionEnd::Finished, "{:#?}", report.events);
 }
 
+/// Issue 26, item 2: a camera that sees only the room's west quarter (x < -5 m) and the
+/// hand-made layout 03, whose targets' views lie wholly east of it (inside the room: unknown).
+/// The planner plans none of them, says why for each on `events`, the mission ends with
+/// PlanFinished within 30 s of simulated time, the robot never drives, and the world report
+/// lists the three objects as not attempted. (Before, the whole request was refused and the
+/// mission ran into the world's timeout.)
+#[test]
+fn a_camera_that_misses_every_target_ends_the_mission_at_once() {
+    let dir = hil_world::suite::suite_dir("handmade").unwrap();
+    let layout = hil_world::suite::load_dir(&dir)
+        .unwrap()
+        .into_iter()
+        .find(|s| s.name.starts_with("03-"))
+        .expect("layout 03");
+    let spec = MissionSpec {
+        scene: layout.scene,
+        ..spec_with("f-narrow", 6, "camera-narrow")
+    };
+    let report = run(&spec);
+    always(&report, &spec.robot);
+    assert_eq!(report.end, MissionEnd::Finished, "{:#?}", report.events);
+    let finished = report
+        .events
+        .iter()
+        .find(|e| e.kind == "PlanFinished")
+        .expect("PlanFinished");
+    assert!(finished.t_s < 30.0, "finished at {:.1} s", finished.t_s);
+    println!(
+        "camera-narrow: PlanFinished at {:.2} s simulated, not attempted {:?}",
+        finished.t_s, report.not_attempted
+    );
+    let not_planned = events_of(&report, "NotPlanned");
+    assert_eq!(not_planned.len(), 3, "{not_planned:?}");
+    for k in 0..3 {
+        assert!(
+            not_planned
+                .iter()
+                .any(|d| d.contains(&format!("object {k} not planned")) && d.contains("unknown")),
+            "{not_planned:?}"
+        );
+    }
+    assert_eq!(report.not_attempted, vec![0, 1, 2]);
+    assert!(
+        report.legs.is_empty() && report.max_base_speed.0 < 0.01,
+        "the base stays"
+    );
+}
+
 #[test]
 fn a_clock_jump_stops_the_base_and_aborts() {
     let (report, rec) = with_fault("f-clock", 5, "clock-jump");

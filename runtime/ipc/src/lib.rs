@@ -10,6 +10,7 @@
 //! | `<ns>/events` | [`EventMsg`] | none |
 //! | `<ns>/plan/task` | [`TaskPlanMsg`] (v2: load steps, 128 steps) | newest plan |
 //! | `<ns>/plan/request` | [`ReplanRequestMsg`] | none |
+//! | `<ns>/load/request` | [`LoadRequestMsg`] (the objects to put on the tray) | none |
 //! | `<ns>/heatmaps` | [`HeatmapsMsg`] | newest |
 //! | `<ns>/base/pose` | [`BasePoseMsg`] (localisation fixes) | newest fix |
 //! | `<ns>/health` | [`HeartbeatMsg`] | none |
@@ -59,9 +60,9 @@ pub use messages::{
     MessageError, TableSide,
 };
 pub use mission::{
-    BasePoseMsg, HEATMAP_COLS, HEATMAP_ROWS, HeartbeatMsg, HeatmapsMsg, LocationHeatmap,
-    MAX_HEATMAPS, MAX_TASK_OBJECTS, MAX_TASK_STEPS, PoseFixKind, ProcessRole, ReplanReason,
-    ReplanRequestMsg, TaskPlanMsg, TaskStep, TaskStepKind,
+    BasePoseMsg, HEATMAP_COLS, HEATMAP_ROWS, HeartbeatMsg, HeatmapsMsg, LoadRequestMsg,
+    LocationHeatmap, MAX_HEATMAPS, MAX_TASK_OBJECTS, MAX_TASK_STEPS, PoseFixKind, ProcessRole,
+    ReplanReason, ReplanRequestMsg, TaskPlanMsg, TaskStep, TaskStepKind,
 };
 pub use port::{
     FrameError, IpcNode, NodeError, PortError, PublishError, ReceiveError, Received,
@@ -95,6 +96,7 @@ mod sealed {
     impl Sealed for super::EventMsg {}
     impl Sealed for super::TaskPlanMsg {}
     impl Sealed for super::ReplanRequestMsg {}
+    impl Sealed for super::LoadRequestMsg {}
     impl Sealed for super::HeatmapsMsg {}
     impl Sealed for super::BasePoseMsg {}
     impl Sealed for super::HeartbeatMsg {}
@@ -152,6 +154,18 @@ impl Topic for TaskPlanMsg {
 impl Topic for ReplanRequestMsg {
     const NAME: &'static str = "plan/request";
     // A request is for the planner running now; a late joiner must not answer an old one.
+    const HISTORY: usize = 0;
+    const BUFFER: usize = 8;
+    const MAX_SUBSCRIBERS: usize = 4;
+    const MAX_PUBLISHERS: usize = 2;
+    fn stamp_ns(&self) -> u64 {
+        self.stamp_ns
+    }
+}
+
+impl Topic for LoadRequestMsg {
+    const NAME: &'static str = "load/request";
+    // A request is for the loading now; a station that joins late must not load an old one.
     const HISTORY: usize = 0;
     const BUFFER: usize = 8;
     const MAX_SUBSCRIBERS: usize = 4;

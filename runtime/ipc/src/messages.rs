@@ -317,10 +317,19 @@ pub enum EventKind {
     ObjectJudged = 15,
     /// A leg of the plan was driven (or given up).
     LegFinished = 16,
+    /// What the robot holds is not what the executive believes (a sensor of the robot file
+    /// said so: the gripper closed on nothing where the tray should hold an object); the object
+    /// is not placed, and the detail says which slot and object.
+    TrayMismatch = 17,
+    /// The planner cannot plan an object (its views, its goals); the detail says why. The rest
+    /// is planned without it.
+    NotPlanned = 18,
+    /// The executive asked the loading station for objects (`load/request`).
+    LoadRequested = 19,
     /// The collision monitor stopped the base (an obstacle in the stop zone, a stale scan) or
     /// let it go again, or the base stalled against something (commanded motion, none
     /// measured); the detail says which.
-    Obstacle = 17,
+    Obstacle = 20,
 }
 
 impl EventKind {
@@ -342,7 +351,10 @@ impl EventKind {
             14 => Self::Collision,
             15 => Self::ObjectJudged,
             16 => Self::LegFinished,
-            17 => Self::Obstacle,
+            17 => Self::TrayMismatch,
+            18 => Self::NotPlanned,
+            19 => Self::LoadRequested,
+            20 => Self::Obstacle,
             _ => {
                 return Err(MessageError::UnknownEnumValue {
                     message: "EventMsg",

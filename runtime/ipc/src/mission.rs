@@ -316,6 +316,67 @@ impl ReplanRequestMsg {
 }
 
 // ---------------------------------------------------------------------------------------------
+// load/request
+
+/// The executive asks the people at the loading station to put objects on the tray
+/// (`load/request`): what the robot's display shows them. One request per load step; the
+/// station (a person, or the HIL world) loads exactly `object_mask`, once per `request_id`, in
+/// object order into the free tray slots (the order the executive assumes).
+#[derive(Clone, Copy, Debug, PartialEq, ZeroCopySend)]
+#[repr(C)]
+#[type_name("grop_ipc::LoadRequestMsg/v1")]
+pub struct LoadRequestMsg {
+    /// Load request counter of the executive, increasing from 1.
+    pub request_id: u64,
+    /// Time on the runtime clock, nanoseconds.
+    pub stamp_ns: u64,
+    /// The plan whose load step this is.
+    pub plan_id: u64,
+    /// The objects to put on the tray (bit i = object i): the load step's mask.
+    pub object_mask: u64,
+    /// The loading station the base stands at (the step's goal), world x, y (m).
+    pub station_m: [f64; 2],
+    /// Index of the load step in its plan.
+    pub step_index: u32,
+    /// Zero.
+    pub reserved: u32,
+}
+
+impl LoadRequestMsg {
+    /// A request for `object_mask` at `station_m`.
+    pub fn new(
+        request_id: u64,
+        stamp_ns: u64,
+        plan_id: u64,
+        step_index: u32,
+        object_mask: u64,
+        station_m: [f64; 2],
+    ) -> Self {
+        Self {
+            request_id,
+            stamp_ns,
+            plan_id,
+            object_mask,
+            station_m,
+            step_index,
+            reserved: 0,
+        }
+    }
+
+    /// The station, checked: both coordinates finite.
+    pub fn station(&self) -> Result<[f64; 2], MessageError> {
+        match self.station_m.iter().position(|v| !v.is_finite()) {
+            Some(i) => Err(MessageError::NotFinite {
+                message: "LoadRequestMsg",
+                field: "station_m",
+                index: i as u32,
+            }),
+            None => Ok(self.station_m),
+        }
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
 // heatmaps
 
 /// Rows of a heatmap (the near crop's layout, docs/architecture.md).
@@ -555,6 +616,7 @@ mod tests {
         assert_eq!(size_of::<TaskStep>(), 88);
         assert_eq!(size_of::<TaskPlanMsg>(), 80 + 88 * MAX_TASK_STEPS);
         assert_eq!(size_of::<ReplanRequestMsg>(), 88);
+        assert_eq!(size_of::<LoadRequestMsg>(), 56);
         assert_eq!(size_of::<LocationHeatmap>(), 40 + 4 * 2048);
         assert_eq!(size_of::<BasePoseMsg>(), 64);
         assert_eq!(size_of::<HeartbeatMsg>(), 32);
@@ -588,6 +650,18 @@ mod tests {
         assert!(fix.pose().is_err());
         fix.kind = 9;
         assert!(fix.kind().is_err());
+    }
+
+    #[test]
+    fn a_load_request_carries_its_mask_and_checks_its_station() {
+        let mut m = LoadRequestMsg::new(3, 10, 2, 4, 0b1010, [0.0, 1.05]);
+        assert_eq!((m.request_id, m.object_mask, m.step_index), (3, 0b1010, 4));
+        assert_eq!(m.station(), Ok([0.0, 1.05]));
+        m.station_m[1] = f64::INFINITY;
+        assert!(matches!(
+            m.station(),
+            Err(MessageError::NotFinite { index: 1, .. })
+        ));
     }
 
     #[test]

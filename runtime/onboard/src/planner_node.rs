@@ -10,7 +10,10 @@
 //! * keeps the newest `camera/frame` (a borrowed shared-memory sample, no copy);
 //! * answers the newest `plan/request` once a frame is there (older unanswered requests are
 //!   superseded): for every (object, side) it cuts the 64 x 32 view out of the frame
-//!   (`world::camera::cut_view`), runs Psi on all of them in one batch (`h = Psi(IM)`, eq. 2),
+//!   (`world::camera::cut_view`; a view that reaches past the frame's edge with
+//!   `cut_view_past_frame`: wall where it lies outside the room, *unknown* where it lies inside
+//!   the room, and unknown is no goal: those heatmap cells are zeroed; an object whose views keep
+//!   no goal is not planned, reported as `NotPlanned` on `events`, and the rest is), runs Psi on all of them in one batch (`h = Psi(IM)`, eq. 2),
 //!   builds the task problem (obstacle-free cells from the map, navigation costs `C` from the
 //!   occupancy grid built once at start), lets the selected method choose the plan
 //!   (GROP: argmax of `U = R F - C`, eq. 1, with `F` per location in closed form, eq. 4) and
@@ -54,10 +57,10 @@ use std::time::{Duration, Instant};
 
 use grop_clock::Clock;
 use grop_ipc::{
-    CameraFrameMsg, HeartbeatMsg, HeatmapsMsg, IpcNode, MAX_HEATMAPS, MAX_TASK_STEPS, MessageError,
-    NodeError, PortError, ProcessRole, PublishError, ReceiveError, Received, ReplanReason,
-    ReplanRequestMsg, TableSide, TaskPlanMsg, TaskStep, TaskStepKind, TopicPublisher,
-    TopicSubscriber,
+    CameraFrameMsg, EventKind, EventMsg, HeartbeatMsg, HeatmapsMsg, IpcNode, MAX_HEATMAPS,
+    MAX_TASK_STEPS, MessageError, NodeError, PortError, ProcessRole, PublishError, ReceiveError,
+    Received, ReplanReason, ReplanRequestMsg, TableSide, TaskPlanMsg, TaskStep, TaskStepKind,
+    TopicPublisher, TopicSubscriber,
 };
 use planner::costs::{GridTravelTime, TravelTime};
 use planner::feasibility::{
@@ -68,7 +71,10 @@ use planner::methods::{PlanError, PlannedTask, Planner, PlannerConfig, TaskMotio
 use planner::problem::{MAX_PROBLEM_OBJECTS, TaskProblem, side_of_location};
 use planner::task::{MAX_OBJECTS, location_index};
 use planner::trip_methods::{MultiTripError, MultiTripPlanner};
-use world::camera::{CameraError, FrameLayout, OverheadCamera, PixelFormat, check_view, cut_views};
+use world::camera::{
+    CameraError, FrameLayout, OverheadCamera, PixelFormat, check_view, cut_view_past_frame,
+    cut_views,
+};
 use world::nav::OccupancyGrid;
 use world::view::CROP_CELLS;
 use world::{Heatmap, RobotConfig, Scene, Side};
@@ -189,6 +195,8 @@ pub struct PlannerNode {
     plans: TopicPublisher<TaskPlanMsg>,
     heatmaps: TopicPublisher<HeatmapsMsg>,
     health: TopicPublisher<HeartbeatMsg>,
+    /// What the node cannot plan (`NotPlanned`), with the reason.
+    events: TopicPublisher<EventMsg>,
     newest_frame: Option<Received<CameraFrameMsg>>,
     /// The frame id last reported too old to plan from.
     stale_frame_warned: Option<u64>,
@@ -290,6 +298,7 @@ impl PlannerNode {
             plans: ipc.publisher()?,
             heatmaps: ipc.publisher()?,
             health: ipc.publisher()?,
+            events: ipc.publisher()?,
             newest_frame: None,
             pending: None,
             planner: Planner::new(settings.method, config),
@@ -566,6 +575,7 @@ impl PlannerNode {
         now: Duration,
     ) -> Result<Answer, RequestError> {
         let started = Instant::now();
+        let mut objects_mask = objects_mask;
         let mut objects: Vec<usize> = (0..self.scene.targets.len())
             .filter(|i| objects_mask & (1 << i) != 0)
             .collect();
@@ -578,7 +588,7 @@ impl PlannerNode {
         // One trip when the tray takes everything (the single-trip planner, exactly as before);
         // otherwise trips, the objects already on board first (delivered before the next
         // station visit).
-        let single_trip = objects.len() <= free.min(MAX_OBJECTS);
+        let mut single_trip = objects.len() <= free.min(MAX_OBJECTS);
         if !single_trip {
             objects.sort_by_key(|&o| on_board & (1 << o) == 0);
         }
@@ -611,29 +621,60 @@ impl PlannerNode {
             },
             row_stride_bytes: header.row_stride_bytes as usize,
         };
-        let targets: Vec<[f64; 3]> = objects
+        let mut targets: Vec<[f64; 3]> = objects
             .iter()
             .map(|&i| self.scene.targets[i].as_array())
             .collect();
-        let m = 2 * objects.len();
+        let mut m = 2 * objects.len();
         let views: Vec<(f64, Side)> = (0..m)
             .map(|i| (targets[i / 2][0], side_of_location(i)))
             .collect();
-        // Each view first, so that a bad one is reported with its object.
+        // Views inside the frame are cut together; a view that reaches past the frame's edge
+        // is cut alone: wall where it lies outside the room, unknown (read as wall, and no
+        // goal) where it lies inside the room but outside the frame.
+        let mut inside: Vec<usize> = Vec::with_capacity(m);
+        let mut unknown: Vec<(usize, Box<[bool; CROP_CELLS]>, usize)> = Vec::new();
         for (i, &(x, side)) in views.iter().enumerate() {
-            check_view(&layout, x, side).map_err(|error| RequestError::Cut {
+            let cut_error = |error| RequestError::Cut {
                 object: objects[i / 2],
                 side,
                 error,
-            })?;
-        }
-        cut_views(pixels, &layout, &views, &mut self.crops[..m]).map_err(|error| {
-            RequestError::Cut {
-                object: objects[0],
-                side: views[0].1,
-                error,
+            };
+            match check_view(&layout, x, side) {
+                Ok(()) => inside.push(i),
+                Err(CameraError::ViewOutsideFrame { .. }) => {
+                    let mut cells = Box::new([false; CROP_CELLS]);
+                    let n = cut_view_past_frame(
+                        pixels,
+                        &layout,
+                        &self.scene.room,
+                        x,
+                        side,
+                        &mut self.crops[i],
+                        &mut cells,
+                    )
+                    .map_err(cut_error)?;
+                    if n > 0 {
+                        unknown.push((i, cells, n));
+                    }
+                }
+                Err(error) => return Err(cut_error(error)),
             }
-        })?;
+        }
+        if !inside.is_empty() {
+            let inside_views: Vec<(f64, Side)> = inside.iter().map(|&i| views[i]).collect();
+            let mut crops = vec![[0u8; CROP_CELLS]; inside.len()];
+            cut_views(pixels, &layout, &inside_views, &mut crops).map_err(|error| {
+                RequestError::Cut {
+                    object: objects[inside[0] / 2],
+                    side: inside_views[0].1,
+                    error,
+                }
+            })?;
+            for (&i, crop) in inside.iter().zip(&crops) {
+                self.crops[i] = *crop;
+            }
+        }
         let queries: Vec<FeasibilityQuery<'_>> = self.crops[..m]
             .iter()
             .enumerate()
@@ -645,8 +686,56 @@ impl PlannerNode {
                 crop,
             })
             .collect();
+        self.psi.evaluate(&queries, &mut self.heat_buffers[..m])?;
+        // Unknown is not free: no goal on a cell the camera did not see. An object whose views
+        // keep no cell with a chance is not planned; the node says so on `events` and plans the
+        // rest.
+        for (i, cells, _) in &unknown {
+            for (v, u) in self.heat_buffers[*i]
+                .values_mut()
+                .iter_mut()
+                .zip(cells.iter())
+            {
+                if *u {
+                    *v = 0.0;
+                }
+            }
+        }
+        let unknown_of = |i: usize| unknown.iter().find(|(k, _, _)| *k == i).map_or(0, |u| u.2);
+        let not_planned: Vec<usize> = (0..objects.len())
+            .filter(|&k| {
+                let blind = unknown_of(2 * k) + unknown_of(2 * k + 1) > 0;
+                let hopeless = (2 * k..2 * k + 2)
+                    .all(|i| self.heat_buffers[i].values().iter().all(|&v| v <= 0.0));
+                blind && hopeless
+            })
+            .collect();
+        for &k in not_planned.iter().rev() {
+            let object = objects[k];
+            let detail = format!(
+                "object {object} not planned: view cells unknown past the camera frame (near {}, far {}), no goal left",
+                unknown_of(2 * k),
+                unknown_of(2 * k + 1)
+            );
+            log::warn!("request {}: {detail}", request.request_id);
+            let mut event = EventMsg::new(EventKind::NotPlanned, duration_ns(now), &detail)
+                .with_source(ProcessRole::Planner);
+            event.step_index = object as u32;
+            if let Err(error) = self.events.publish(&event) {
+                log::warn!("event: {error}");
+            }
+            objects.remove(k);
+            targets.remove(k);
+            self.crops.copy_within(2 * k + 2..m, 2 * k);
+            self.heat_buffers[2 * k..m].rotate_left(2);
+            m -= 2;
+            objects_mask &= !(1u64 << object);
+        }
+        if objects.is_empty() {
+            return self.publish_plan(request, header.frame_id, &[], (0.0, 0.0, 0.0), started, now);
+        }
+        single_trip = single_trip || objects.len() <= free.min(MAX_OBJECTS);
         let heatmaps = &mut self.heat_buffers[..m];
-        self.psi.evaluate(&queries, heatmaps)?;
         let mut problem = TaskProblem::from_heatmaps(&self.scene, &self.robot, &targets, heatmaps);
         let pose_xy = (request.pose[0], request.pose[1]);
         problem.start_xy = pose_xy;

@@ -529,6 +529,82 @@ pub fn check_view(layout: &FrameLayout, target_x_m: f64, side: Side) -> Result<(
     Ok(())
 }
 
+/// Sub-samples per cell side of [`cut_view_past_frame`].
+const PAST_FRAME_SUBSAMPLES: usize = 4;
+
+/// Cuts the crop of a view that reaches past the frame's edge (where [`check_view`] refuses
+/// it). Each cell is the mean gray of 4 x 4 sub-samples of its square: a sub-sample inside the
+/// frame reads the pixel under it; one outside the frame *and outside the room* is wall (gray 0,
+/// as the renderer draws beyond the walls: the map says so); one outside the frame but inside
+/// the room is *unknown*: the cell is marked in `unknown` and reads as wall (gray 0), since
+/// unknown is not free. Returns how many cells are unknown (0: the crop is complete, as the
+/// rendered view would be up to the sub-sampling). Allocates nothing.
+pub fn cut_view_past_frame(
+    pixels: &[u8],
+    layout: &FrameLayout,
+    room: &crate::scene::Room,
+    target_x_m: f64,
+    side: Side,
+    crop: &mut [u8; CROP_ROWS * CROP_COLS],
+    unknown: &mut [bool; CROP_ROWS * CROP_COLS],
+) -> Result<usize, CameraError> {
+    layout.check(pixels.len())?;
+    if !target_x_m.is_finite() {
+        return Err(CameraError::BadTarget(target_x_m));
+    }
+    let cam = &layout.camera;
+    let m = cam.metres_per_px;
+    let bpp = layout.format.bytes_per_px();
+    let wall = f64::from(rgb_to_gray(WALL_RGB));
+    let sample = |x: f64, y: f64| -> Option<f64> {
+        let u = ((x - cam.left_x_m) / m).floor();
+        let v = ((cam.top_y_m - y) / m).floor();
+        if u >= 0.0 && v >= 0.0 && u < f64::from(cam.width_px) && v < f64::from(cam.height_px) {
+            let at = v as usize * layout.row_stride_bytes + u as usize * bpp;
+            Some(match layout.format {
+                PixelFormat::Mono8 => f64::from(pixels[at]),
+                PixelFormat::Rgb8 => luma([pixels[at], pixels[at + 1], pixels[at + 2]]),
+            })
+        } else if !room.contains(x, y) {
+            Some(wall)
+        } else {
+            None
+        }
+    };
+    let n = PAST_FRAME_SUBSAMPLES;
+    let mut unknown_cells = 0;
+    for r in 0..CROP_ROWS {
+        for c in 0..CROP_COLS {
+            let mut sum = 0.0;
+            let mut known = true;
+            for i in 0..n {
+                for j in 0..n {
+                    let (x, y) = crop_point_world(
+                        target_x_m,
+                        side,
+                        r as f64 + (i as f64 + 0.5) / n as f64,
+                        c as f64 + (j as f64 + 0.5) / n as f64,
+                    );
+                    match sample(x, y) {
+                        Some(g) => sum += g,
+                        None => known = false,
+                    }
+                }
+            }
+            let k = r * CROP_COLS + c;
+            unknown[k] = !known;
+            crop[k] = if known {
+                // A mean of gray levels in 0..=255: rounds into the range.
+                (sum / (n * n) as f64).round() as u8
+            } else {
+                unknown_cells += 1;
+                wall as u8
+            };
+        }
+    }
+    Ok(unknown_cells)
+}
+
 /// The frame columns `[p0, p1)` a view's cells touch.
 fn view_pixel_columns(layout: &FrameLayout, target_x_m: f64, side: Side) -> (usize, usize) {
     // A column's span moves monotonically with the column (clamping keeps the order), so the
@@ -947,6 +1023,108 @@ mod tests {
             assert_eq!(luma(rgb), f64::from(gray), "{rgb:?}");
             assert_eq!(rgb_to_gray(rgb), gray);
         }
+    }
+
+    /// A view past the frame: where the frame ends at the wall, the crop is what the renderer
+    /// draws (wall beyond it), no cell unknown; where the frame ends inside the room, the cells
+    /// beyond are unknown and read as wall.
+    #[test]
+    fn a_view_past_the_frame_is_wall_outside_the_room_and_unknown_inside() {
+        let mut scene = Scene::empty_paper_room();
+        scene.room = crate::scene::Room {
+            x_min_m: -5.0,
+            x_max_m: 5.0,
+            y_min_m: -0.6,
+            y_max_m: 8.4,
+        };
+        scene.banquet_table.segment_count = 6;
+        let cam = OverheadCamera::fitting_room(&scene);
+        let mut frame = vec![0u8; cam.rgb8_len()];
+        render_frame(&scene, &cam, &mut frame).unwrap();
+        let layout = FrameLayout::rgb8(cam);
+        let x = 4.4;
+        assert!(
+            check_view(&layout, x, Side::Near).is_err(),
+            "past the frame"
+        );
+        let mut crop = [0u8; CROP_ROWS * CROP_COLS];
+        let mut unknown = [false; CROP_ROWS * CROP_COLS];
+        for side in [Side::Near, Side::Far] {
+            let n = cut_view_past_frame(
+                &frame,
+                &layout,
+                &scene.room,
+                x,
+                side,
+                &mut crop,
+                &mut unknown,
+            )
+            .unwrap();
+            assert_eq!(n, 0, "{side}: the frame covers the room");
+            let rendered = crate::view::render_crop(&scene, x, side);
+            let worst = crop
+                .iter()
+                .zip(&rendered)
+                .map(|(a, b)| a.abs_diff(*b))
+                .max()
+                .unwrap();
+            let mean = crop
+                .iter()
+                .zip(&rendered)
+                .map(|(a, b)| f64::from(a.abs_diff(*b)))
+                .sum::<f64>()
+                / crop.len() as f64;
+            assert!(
+                mean < 2.0 && worst <= 100,
+                "{side}: mean {mean}, worst {worst}"
+            );
+        }
+        // A camera that sees x < 3 m only: the cells of x > 3 m inside the room are unknown.
+        let half = OverheadCamera {
+            width_px: ((3.0 - cam.left_x_m) / cam.metres_per_px) as u32,
+            ..cam
+        };
+        let mut small = vec![0u8; half.rgb8_len()];
+        render_frame(&scene, &half, &mut small).unwrap();
+        let n = cut_view_past_frame(
+            &small,
+            &FrameLayout::rgb8(half),
+            &scene.room,
+            x,
+            Side::Near,
+            &mut crop,
+            &mut unknown,
+        )
+        .unwrap();
+        // The view spans x 2.4 .. 6.4; the room ends at 5: about (5 - 3) / 4 of it is unknown.
+        let share = n as f64 / crop.len() as f64;
+        assert!((0.45..0.55).contains(&share), "{n} unknown cells");
+        for (k, u) in unknown.iter().enumerate() {
+            let (cx, cy) =
+                crate::view::cell_center_world(x, Side::Near, k / CROP_COLS, k % CROP_COLS);
+            if *u {
+                assert_eq!(crop[k], WALL_GRAY);
+                assert!(
+                    cx > 2.9 && cx < 5.1 && (-0.7..8.5).contains(&cy),
+                    "{cx} {cy}"
+                );
+            }
+            if cx < 2.9 {
+                assert!(!u, "cell at x {cx} is in the frame");
+            }
+        }
+        assert!(
+            cut_view_past_frame(
+                &small,
+                &FrameLayout::rgb8(half),
+                &scene.room,
+                f64::NAN,
+                Side::Near,
+                &mut crop,
+                &mut unknown
+            )
+            .is_err()
+        );
     }
 
     #[test]

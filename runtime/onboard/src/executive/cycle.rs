@@ -4,7 +4,7 @@
 
 use std::time::Duration;
 
-use grop_ipc::{BasePoseMsg, EventMsg, ReplanRequestMsg, TaskPlanMsg};
+use grop_ipc::{BasePoseMsg, EventMsg, LoadRequestMsg, ReplanRequestMsg, TaskPlanMsg};
 use motion_control::Twist;
 use rmp_base::{BaseError, BaseMode, Odometry, Tick};
 use ur5e_kin::Joints;
@@ -132,6 +132,9 @@ pub struct CycleOutputs {
     pub job: Option<Job>,
     /// A plan request to publish.
     pub request: Option<ReplanRequestMsg>,
+    /// A load request to publish (`load/request`: the objects the station is to put on the
+    /// tray).
+    pub load_request: Option<LoadRequestMsg>,
     /// Events to publish, in order.
     pub events: heapless::Vec<EventMsg, MAX_EVENTS_PER_CYCLE>,
     /// Events that did not fit (counted, logged).
@@ -150,6 +153,7 @@ impl Default for CycleOutputs {
             arm: ArmCommand::None,
             job: None,
             request: None,
+            load_request: None,
             events: heapless::Vec::new(),
             events_dropped: 0,
             abort: None,
@@ -167,6 +171,7 @@ impl CycleOutputs {
         self.arm = ArmCommand::None;
         self.job = None;
         self.request = None;
+        self.load_request = None;
         self.events.clear();
         self.events_dropped = 0;
         self.abort = None;

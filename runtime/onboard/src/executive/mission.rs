@@ -14,8 +14,8 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use grop_ipc::{
-    EventKind, EventMsg, PoseFixKind, ProcessRole, ReplanReason, ReplanRequestMsg, TaskPlanMsg,
-    TaskStep, TaskStepKind,
+    EventKind, EventMsg, LoadRequestMsg, PoseFixKind, ProcessRole, ReplanReason, ReplanRequestMsg,
+    TaskPlanMsg, TaskStep, TaskStepKind,
 };
 use motion_control::Twist;
 use motion_control::follower::PathFollower;
@@ -176,6 +176,8 @@ pub struct MissionCore {
     pub(super) phase: Option<Phase>,
     pub(super) state: MissionState,
     request_id: u64,
+    /// Load requests sent (`load/request`), the last one's id.
+    load_request_id: u64,
     request_sent: Option<Duration>,
     last_request: ReplanRequestMsg,
     /// Standing still after a localisation jump until then.
@@ -253,6 +255,7 @@ impl MissionCore {
             phase: None,
             state: MissionState::Starting,
             request_id: 0,
+            load_request_id: 0,
             request_sent: None,
             last_request: zero_request(),
             jump_hold_until: None,
@@ -861,9 +864,12 @@ impl MissionCore {
         let pose = self.localiser.estimate();
         let phase = self.phase.take();
         self.phase = match (kind, phase) {
-            (Ok(TaskStepKind::Load), None) => Some(Phase::Loading {
-                until: now + self.config.load_wait,
-            }),
+            (Ok(TaskStepKind::Load), None) => {
+                self.request_load(&step, now, outputs);
+                Some(Phase::Loading {
+                    until: now + self.config.load_wait,
+                })
+            }
             (Ok(TaskStepKind::Unload), None) => Some(Phase::AwaitTableFix { since: now }),
             (Ok(_), Some(Phase::Loading { until })) => {
                 if now >= until {
@@ -947,6 +953,27 @@ impl MissionCore {
                 }
             },
         }
+    }
+
+    /// Asks the station for the load step's objects (`load/request`, once per load step): what
+    /// the robot's display shows the people there. The station loads exactly this mask.
+    fn request_load(&mut self, step: &TaskStep, now: Duration, outputs: &mut CycleOutputs) {
+        self.load_request_id += 1;
+        outputs.load_request = Some(LoadRequestMsg::new(
+            self.load_request_id,
+            ns(now),
+            self.plan_id,
+            u32::try_from(self.step_index).unwrap_or(u32::MAX),
+            step.load_mask,
+            [step.x_m, step.y_m],
+        ));
+        let id = self.load_request_id;
+        self.event(
+            EventKind::LoadRequested,
+            now,
+            format_args!("load request {id}: objects {:#x} asked for", step.load_mask),
+            outputs,
+        );
     }
 
     fn load(&mut self, step: &TaskStep, now: Duration, outputs: &mut CycleOutputs) {
@@ -1043,6 +1070,25 @@ impl MissionCore {
                     }
                 };
                 self.abort(reason, now, outputs);
+            }
+            Some(UnloadFailure::NothingInSlot) => {
+                // The gripper's object check: the slot believed to hold the object is empty.
+                // Not placed; the belief is corrected, the planner decides what follows.
+                let object = step.object_index;
+                let slot = self.slots.iter().position(|s| *s == Some(object));
+                if let Some(k) = slot {
+                    self.slots[k] = None;
+                }
+                self.event(
+                    EventKind::TrayMismatch,
+                    now,
+                    format_args!(
+                        "object {object}: the gripper closed on nothing in slot {}, believed to hold it",
+                        slot.map_or(-1, |k| k as i64)
+                    ),
+                    outputs,
+                );
+                self.finish_failed_unload(&step, now, UnloadFailure::NothingInSlot, outputs);
             }
             Some(f) => self.finish_failed_unload(&step, now, f, outputs),
         }

@@ -602,3 +602,130 @@ fn motion_sent_with_none_measured_is_a_stall_that_stops_the_leg() {
     assert_eq!(b.out.velocity, Twist::ZERO);
     assert_eq!(b.core.stats().stalls, 1);
 }
+
+#[test]
+fn each_load_step_asks_the_station_once_for_its_own_mask() {
+    let mut b = Bench::with_objects(3);
+    // Standing at the station (1, 1): two load steps in a row (two trips' loads).
+    assert!(
+        b.running_with(&[
+            TaskStep::load(0b001, 1.0, 1.0),
+            TaskStep::load(0b100, 1.0, 1.0)
+        ])
+        .is_none(),
+        "no leg before a load at the start"
+    );
+    let mut asked = Vec::new();
+    for _ in 0..400 {
+        b.step(|_| {});
+        if let Some(r) = b.out.load_request {
+            asked.push((
+                r.request_id,
+                r.object_mask,
+                r.station_m,
+                r.plan_id,
+                r.step_index,
+            ));
+        }
+        if b.core.state() == MissionState::Finished {
+            break;
+        }
+    }
+    // The first request went out in the cycle the plan was taken (inside running_with).
+    let first = b
+        .events
+        .iter()
+        .filter(|(k, _)| *k == EventKind::LoadRequested)
+        .map(|(_, d)| d.as_str())
+        .collect::<Vec<_>>();
+    assert_eq!(first.len(), 2, "{first:?}");
+    assert!(
+        first[0].contains("request 1") && first[0].contains("0x1"),
+        "{first:?}"
+    );
+    assert_eq!(
+        asked,
+        vec![(2, 0b100, [1.0, 1.0], 7, 1)],
+        "the second, once"
+    );
+    assert_eq!(b.core.state(), MissionState::Finished);
+    // The tray holds the two objects in the slots the station fills (object order).
+    assert_eq!(&b.core.slots[..3], &[Some(0), Some(2), None]);
+}
+
+#[test]
+fn an_empty_plan_finishes_the_mission_at_once() {
+    // The planner could plan none of the objects (e.g. views unknown past the camera frame,
+    // each reported by the planner): an empty plan ends the mission, the base never drives.
+    let mut b = Bench::new();
+    let request = b.until_request();
+    let p = plan(request, &[]);
+    b.step(|i| {
+        i.plans = std::slice::from_ref(&p);
+        i.skill = Some(Ok(SkillStatus::Done { object_held: false }));
+    });
+    for _ in 0..10 {
+        b.step(|_| {});
+    }
+    assert_eq!(b.core.state(), MissionState::Finished);
+    assert!(b.saw(EventKind::PlanFinished), "{:?}", b.events);
+    assert_eq!(b.out.velocity, Twist::ZERO);
+}
+
+#[test]
+fn a_gripper_that_closes_on_nothing_is_reported_and_nothing_is_placed() {
+    use crate::executive::unload::{PlaceJoints, UnloadPlan};
+    let mut b = Bench::with_objects(1);
+    // At the station (1, 1): load object 0, then unload it right here (no leg between).
+    let unload = TaskStep::unload(
+        0,
+        grop_ipc::TableSide::Near,
+        [1.5, 1.6, 1.3],
+        [1.0, 1.0, 0.0],
+        0.9,
+    );
+    assert!(
+        b.running_with(&[TaskStep::load(0b1, 1.0, 1.0), unload])
+            .is_none()
+    );
+    let carry = b.core.tray.carry;
+    let mut answer: Option<Answer> = None;
+    let mut skill = None;
+    for _ in 0..2000 {
+        // A few answers over the test's lifetime, leaked for the borrow (as the fixes are).
+        let a: Option<&'static Answer> = answer.take().map(|a| &*Box::leak(Box::new(a)));
+        let s = skill.take();
+        b.step(|i| {
+            i.answer = a;
+            i.skill = s;
+        });
+        if let Some(Job::Unload { id, .. }) = b.out.job {
+            let joints = PlaceJoints {
+                place: carry,
+                above: carry,
+            };
+            answer = Some(Answer::Unload(id, Ok(UnloadPlan::direct(joints, carry))));
+        }
+        // Every arm skill ends at once; the gripper never feels an object (the slot is empty).
+        if b.out.arm != ArmCommand::None {
+            skill = Some(Ok(SkillStatus::Done { object_held: false }));
+        }
+        if b.saw(EventKind::UnloadFailed) {
+            break;
+        }
+    }
+    let mismatch: Vec<&String> = b
+        .events
+        .iter()
+        .filter(|(k, _)| *k == EventKind::TrayMismatch)
+        .map(|(_, d)| d)
+        .collect();
+    assert_eq!(mismatch.len(), 1, "{:?}", b.events);
+    assert!(
+        mismatch[0].contains("object 0") && mismatch[0].contains("slot 0"),
+        "{mismatch:?}"
+    );
+    assert!(!b.saw(EventKind::UnloadSucceeded));
+    assert_eq!(b.core.stats().unloads_ok, 0);
+    assert_eq!(b.core.slots[0], None, "the belief is corrected");
+}

@@ -49,6 +49,7 @@ pub struct ExecutivePorts {
     arm_state: TopicPublisher<ArmStateMsg>,
     events: TopicPublisher<EventMsg>,
     requests: TopicPublisher<ReplanRequestMsg>,
+    loads: TopicPublisher<grop_ipc::LoadRequestMsg>,
     health: TopicPublisher<HeartbeatMsg>,
     plans: TopicSubscriber<TaskPlanMsg>,
     poses: TopicSubscriber<BasePoseMsg>,
@@ -64,6 +65,7 @@ impl ExecutivePorts {
             arm_state: node.publisher().map_err(e)?,
             events: node.publisher().map_err(e)?,
             requests: node.publisher().map_err(e)?,
+            loads: node.publisher().map_err(e)?,
             health: node.publisher().map_err(e)?,
             plans: node.subscriber().map_err(e)?,
             poses: node.subscriber().map_err(e)?,
@@ -649,6 +651,10 @@ impl<D: BaseDevice, A: ArmDevice> Executive<D, A> {
         if let Some(req) = self.outputs.request.take() {
             self.stats.published += 1;
             let _ = self.ports.requests.publish(&req);
+        }
+        if let Some(load) = self.outputs.load_request.take() {
+            self.stats.published += 1;
+            let _ = self.ports.loads.publish(&load);
         }
         for event in &self.outputs.events {
             self.stats.published += 1;

@@ -12,8 +12,8 @@ use base64::engine::general_purpose::STANDARD as BASE64;
 use can_bus::{CanFrame, CanId};
 use grop_ipc::{
     ArmIoMsg, ArmStateMsg, BasePoseMsg, BaseStateMsg, CameraFrameHeader, CameraFrameMsg, EventMsg,
-    HEATMAP_COLS, HEATMAP_ROWS, HeartbeatMsg, HeatmapsMsg, MAX_HEATMAPS, MAX_TASK_STEPS,
-    ReplanRequestMsg, TaskPlanMsg,
+    HEATMAP_COLS, HEATMAP_ROWS, HeartbeatMsg, HeatmapsMsg, LoadRequestMsg, MAX_HEATMAPS,
+    MAX_TASK_STEPS, ReplanRequestMsg, TaskPlanMsg,
 };
 use serde::{Deserialize, Serialize};
 use serde_json::{Value, json};
@@ -45,11 +45,13 @@ pub enum Channel {
     Can,
     /// Wall-clock decision time of each plan (not deterministic; not in the digest).
     DecisionTiming,
+    /// `load/request` (the objects the executive asks the station to put on the tray).
+    LoadRequest,
 }
 
 impl Channel {
     /// All channels, in channel-id order.
-    pub const ALL: [Channel; 12] = [
+    pub const ALL: [Channel; 13] = [
         Channel::CameraFrame,
         Channel::Heatmaps,
         Channel::TaskPlan,
@@ -62,6 +64,7 @@ impl Channel {
         Channel::Health,
         Channel::Can,
         Channel::DecisionTiming,
+        Channel::LoadRequest,
     ];
 
     /// The MCAP topic.
@@ -79,6 +82,7 @@ impl Channel {
             Channel::Health => "/health",
             Channel::Can => "/can",
             Channel::DecisionTiming => "/timing/decision",
+            Channel::LoadRequest => "/load/request",
         }
     }
 
@@ -102,6 +106,7 @@ impl Channel {
             Channel::Health => "grop.Heartbeat",
             Channel::Can => "grop.CanFrame",
             Channel::DecisionTiming => "grop.DecisionTiming",
+            Channel::LoadRequest => "grop.LoadRequest",
         }
     }
 
@@ -153,6 +158,13 @@ impl Channel {
                     "request_id": int, "stamp_ns": int, "reason": int, "reason_name": text,
                     "failed_object": int, "remaining_mask": int, "on_board_mask": int,
                     "pose": nums(3), "failed_side": int, "failed_goal_m": nums(2)
+                }),
+            ),
+            Channel::LoadRequest => (
+                "The executive asks the loading station for objects on the tray",
+                json!({
+                    "request_id": int, "stamp_ns": int, "plan_id": int, "step_index": int,
+                    "object_mask": int, "station_m": nums(2)
                 }),
             ),
             Channel::BasePose => (
@@ -476,6 +488,14 @@ pub fn encode_plan_request(m: &ReplanRequestMsg) -> Vec<u8> {
         "reason_name": name(m.reason()), "failed_object": m.failed_object,
         "remaining_mask": m.remaining_mask, "on_board_mask": m.on_board_mask, "pose": m.pose,
         "failed_side": m.failed_side, "failed_goal_m": m.failed_goal_m
+    }))
+}
+
+/// A load request.
+pub fn encode_load_request(m: &LoadRequestMsg) -> Vec<u8> {
+    to_vec(&json!({
+        "request_id": m.request_id, "stamp_ns": m.stamp_ns, "plan_id": m.plan_id,
+        "step_index": m.step_index, "object_mask": m.object_mask, "station_m": m.station_m
     }))
 }
 

@@ -9,7 +9,7 @@ use std::collections::VecDeque;
 use can_bus::CanBus;
 use grop_ipc::{
     ArmIoMsg, ArmStateMsg, BasePoseMsg, BaseStateMsg, CameraFrameMsg, EventMsg, HeartbeatMsg,
-    HeatmapsMsg, IpcNode, ReplanRequestMsg, TaskPlanMsg, Topic, TopicSubscriber,
+    HeatmapsMsg, IpcNode, LoadRequestMsg, ReplanRequestMsg, TaskPlanMsg, Topic, TopicSubscriber,
 };
 
 use super::LogError;
@@ -39,6 +39,7 @@ struct Subs {
     heatmaps: TopicSubscriber<HeatmapsMsg>,
     plans: TopicSubscriber<TaskPlanMsg>,
     requests: TopicSubscriber<ReplanRequestMsg>,
+    loads: TopicSubscriber<LoadRequestMsg>,
     poses: TopicSubscriber<BasePoseMsg>,
     base: TopicSubscriber<BaseStateMsg>,
     arm: TopicSubscriber<ArmStateMsg>,
@@ -86,6 +87,7 @@ impl Recorder {
                 heatmaps: node.subscriber().map_err(port)?,
                 plans: node.subscriber().map_err(port)?,
                 requests: node.subscriber().map_err(port)?,
+                loads: node.subscriber().map_err(port)?,
                 poses: node.subscriber().map_err(port)?,
                 base: node.subscriber().map_err(port)?,
                 arm: node.subscriber().map_err(port)?,
@@ -211,6 +213,15 @@ impl Recorder {
                     e,
                     |m| (m.stamp_ns, m.request_id),
                     codec::encode_plan_request,
+                ),
+            ),
+            (
+                Channel::LoadRequest,
+                Self::take(
+                    &self.subs.loads,
+                    e,
+                    |m| (m.stamp_ns, m.request_id),
+                    codec::encode_load_request,
                 ),
             ),
             (
