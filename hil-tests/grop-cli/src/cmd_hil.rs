@@ -207,22 +207,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                     .collect();
                 scene.name = format!("task-{}", task.id);
                 let spec = MissionSpec {
-                    dir: out_dir.join(format!("task-{:03}", task.id)),
-                    scene,
                     robot: cfg.robot.clone(),
-                    model: model.clone(),
                     method: args.method.clone(),
                     paper_smp: args.paper_smp,
-                    retry: "none".into(),
-                    seed: mix_seed(cfg.seed, task.id as u64, 0x706c),
-                    pace: None,
-                    camera_px: (640, 480),
-                    max_sim_s: 600.0,
-                    progress_s: 0.0,
-                    log: None,
-                    fault: None,
                     lidar: !args.no_lidar,
-                    unmapped_chairs: Vec::new(),
+                    ..MissionSpec::new(
+                        out_dir.join(format!("task-{:03}", task.id)),
+                        scene,
+                        model.clone(),
+                        mix_seed(cfg.seed, task.id as u64, 0x706c),
+                    )
                 };
                 let t0 = Instant::now();
                 let result = mission::start(&spec, &bins)

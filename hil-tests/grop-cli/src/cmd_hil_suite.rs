@@ -74,22 +74,15 @@ pub fn run(args: &Args, label: &str, dir: &Path) -> anyhow::Result<()> {
     let next = Mutex::new(0usize);
     let run_one = |k: usize, s: &SuiteScene| -> anyhow::Result<SceneRow> {
         let spec = MissionSpec {
-            dir: args.out_dir.join(format!("scene-{}", s.name)),
-            scene: s.scene.clone(),
-            robot: world::RobotConfig::default(),
-            model: model.clone(),
             method: args.method.clone(),
             paper_smp: args.paper_smp,
-            retry: "none".into(),
-            seed: mix_seed(args.seed, k as u64, 0x7375_6974),
-            pace: None,
-            camera_px: (640, 480),
-            max_sim_s: 600.0,
-            progress_s: 0.0,
-            log: None,
-            fault: None,
             lidar: !args.no_lidar,
-            unmapped_chairs: Vec::new(),
+            ..MissionSpec::new(
+                args.out_dir.join(format!("scene-{}", s.name)),
+                s.scene.clone(),
+                model.clone(),
+                mix_seed(args.seed, k as u64, 0x7375_6974),
+            )
         };
         let t0 = Instant::now();
         let report = mission::start(&spec, &bins)

@@ -19,7 +19,6 @@ use hil_world::mission::{self, MissionSpec};
 use hil_world::report::MissionEnd;
 use serde::{Deserialize, Serialize};
 use trial_sim::shard::{Shard, ShardManifest};
-use world::RobotConfig;
 
 /// Arguments of `grop soak`.
 #[derive(clap::Args, Debug, Serialize, Deserialize)]
@@ -180,22 +179,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         let seed = args.seed + (i % args.scenes) as u64;
         let dir = out_dir.join(format!("mission-{i}-scene-{seed}"));
         let spec = MissionSpec {
-            dir: dir.clone(),
-            scene: world::generate::evaluation_scene(seed, 5 + (seed % 16) as usize, 3),
-            robot: RobotConfig::default(),
-            model: model.clone(),
             method: args.method.clone(),
-            paper_smp: false,
-            retry: "none".into(),
-            seed,
-            pace: None,
-            camera_px: (640, 480),
-            max_sim_s: 600.0,
-            progress_s: 0.0,
-            log: None,
-            fault: None,
-            lidar: true,
-            unmapped_chairs: Vec::new(),
+            ..MissionSpec::new(
+                dir.clone(),
+                world::generate::evaluation_scene(seed, 5 + (seed % 16) as usize, 3),
+                model.clone(),
+                seed,
+            )
         };
         let t0 = Instant::now();
         let outcome = mission::start(&spec, &bins)

@@ -135,6 +135,32 @@ pub struct MissionSpec {
 
 static RUNS: AtomicU64 = AtomicU64::new(0);
 
+impl MissionSpec {
+    /// A mission of `scene` in `dir` with the paper's robot, GROP without retries, the default
+    /// camera, 600 s of simulated time at most, the range sensor on, no log, no fault: what a
+    /// campaign's missions and most tests start from (change the fields that differ).
+    pub fn new(dir: PathBuf, scene: Scene, model: PathBuf, seed: u64) -> Self {
+        Self {
+            dir,
+            scene,
+            robot: RobotConfig::default(),
+            model,
+            method: "grop".into(),
+            paper_smp: false,
+            retry: "none".into(),
+            seed,
+            pace: None,
+            camera_px: (640, 480),
+            max_sim_s: 600.0,
+            progress_s: 0.0,
+            log: None,
+            fault: None,
+            lidar: true,
+            unmapped_chairs: Vec::new(),
+        }
+    }
+}
+
 /// A run name unique on this machine (pid, counter, time).
 pub fn unique_run_name(prefix: &str) -> String {
     let t = std::time::SystemTime::now()

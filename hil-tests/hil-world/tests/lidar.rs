@@ -41,6 +41,7 @@ fn the_monitor_stops_the_base_before_a_chair_the_map_does_not_know() {
         scene,
         unmapped_chairs: vec![chair],
         max_sim_s: 120.0,
+        lidar: true,
         ..spec("lidar-unmapped-chair", 5)
     };
     let report = run(&spec);

@@ -3,7 +3,6 @@
 use std::path::{Path, PathBuf};
 
 use hil_world::mission::{self, MissionSpec};
-use world::RobotConfig;
 
 /// The committed model.
 pub fn model() -> PathBuf {
@@ -11,25 +10,21 @@ pub fn model() -> PathBuf {
 }
 
 /// An evaluation-scene mission with 3 objects in a fresh temporary folder named after `test`,
-/// no log.
+/// no log, progress lines every 0.1 s, 400 s at most, and the range sensor off: these tests are
+/// about kills, faults, logs and loading, and the generated layouts still block some legs of a
+/// base that refuses to touch furniture (docs/lidar.md, "Not done"); `tests/lidar.rs` runs the
+/// sensor.
 pub fn spec(test: &str, seed: u64) -> MissionSpec {
     let dir = std::env::temp_dir().join(mission::unique_run_name(&format!("grop-{test}")));
     MissionSpec {
-        dir,
-        scene: world::generate::evaluation_scene(seed, 15, 3),
-        robot: RobotConfig::default(),
-        model: model(),
-        method: "grop".into(),
-        paper_smp: false,
-        retry: "none".into(),
-        seed,
-        pace: None,
-        camera_px: (640, 480),
         max_sim_s: 400.0,
         progress_s: 0.1,
-        log: None,
-        fault: None,
-        lidar: true,
-        unmapped_chairs: Vec::new(),
+        lidar: false,
+        ..MissionSpec::new(
+            dir,
+            world::generate::evaluation_scene(seed, 15, 3),
+            model(),
+            seed,
+        )
     }
 }
