@@ -18,8 +18,9 @@ fn run(spec: &MissionSpec) -> WorldReport {
         .expect("the world reports")
 }
 
-/// The example scene with the robot 3 m west of the loading station, facing it: its first leg
-/// is the straight line along y = 1.05 m to the station.
+/// The example scene with the robot 3 m west of the loading station, facing east: its first leg
+/// is the straight line to the station's pre-goal, 1 m behind the station (the base docks at
+/// the station as at a table).
 fn west_of_the_station() -> Scene {
     let mut scene = Scene::from_toml_str(
         include_str!("../../../runtime/world/data/example-scene.toml"),
@@ -32,11 +33,17 @@ fn west_of_the_station() -> Scene {
     scene
 }
 
+/// A chair pulled after the map was made into the middle of the first leg (from the start to the
+/// station's pre-goal).
+fn chair_on_the_first_leg(scene: &Scene) -> Chair {
+    let (s, g) = (scene.robot_start, scene.loading_station);
+    Chair::new(0.5 * (s.x_m + g.x_m), 0.5 * (s.y_m + g.y_m + 1.0), 0.3)
+}
+
 #[test]
 fn the_monitor_stops_the_base_before_a_chair_the_map_does_not_know() {
     let scene = west_of_the_station();
-    // A chair pulled into the first leg after the map was made, 1.5 m ahead of the start.
-    let chair = Chair::new(scene.robot_start.x_m + 1.5, scene.robot_start.y_m, 0.3);
+    let chair = chair_on_the_first_leg(&scene);
     let spec = MissionSpec {
         scene,
         unmapped_chairs: vec![chair],
@@ -84,7 +91,7 @@ fn without_the_lidar_the_same_mission_drives_into_the_chair() {
     // The same mission blind (the executive without its monitor): the world holds the base at
     // the chair and counts the contact. Shows the test above can fail.
     let scene = west_of_the_station();
-    let chair = Chair::new(scene.robot_start.x_m + 1.5, scene.robot_start.y_m, 0.3);
+    let chair = chair_on_the_first_leg(&scene);
     let spec = MissionSpec {
         scene,
         unmapped_chairs: vec![chair],

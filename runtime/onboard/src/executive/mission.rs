@@ -436,8 +436,12 @@ impl MissionCore {
         }
         let sent = inputs.sent;
         let measured = inputs.base.odometry;
-        let pushing = sent.speed_mps.abs() >= 0.03 || sent.yaw_rate_radps.abs() >= 0.1;
-        let still = measured.speed_mps.abs() < 0.005 && measured.yaw_rate_radps.abs() < 0.01;
+        // Pushing: a clear command; stalled: a quarter of it or less comes out (a base against
+        // a chair creeps by millimetres as its drives slip and catch).
+        let (sv, sw) = (f64::from(sent.speed_mps), f64::from(sent.yaw_rate_radps));
+        let pushing = sv.abs() >= 0.05 || sw.abs() >= 0.15;
+        let still = measured.speed_mps.abs() <= 0.25 * sv.abs() + 0.005
+            && measured.yaw_rate_radps.abs() <= 0.25 * sw.abs() + 0.01;
         if pushing && still && inputs.base.driving {
             let since = *self.stall_since.get_or_insert(now);
             if now.saturating_sub(since) >= self.config.stall_after {
