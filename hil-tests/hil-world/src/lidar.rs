@@ -148,7 +148,7 @@ mod tests {
             for block in p.blocks {
                 // The chair's near face is 0.775 m ahead: azimuth ~0 (clockwise), level lasers.
                 let az = f64::from(block.azimuth_cdeg) / 100.0;
-                if !(az < 5.0 || az > 355.0) {
+                if (5.0..=355.0).contains(&az) {
                     continue;
                 }
                 for r in block.returns {
