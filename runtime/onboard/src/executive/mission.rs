@@ -23,7 +23,7 @@ use rmp_base::{BaseError, BaseMode, Tick};
 use ur5e_kin::Joints;
 use world::nav::OccupancyGrid;
 
-use super::cycle::{ArmCommand, CycleInputs, CycleOutputs, MonitorAction, MonitorMode};
+use super::cycle::{ArmCommand, CycleInputs, CycleOutputs, MonitorMode};
 use super::unload::{
     ArmFault, ArmPort, SkillStatus, TrayGeometry, UnloadFailure, UnloadProgress, UnloadSequence,
 };
@@ -64,13 +64,6 @@ pub struct CoreStats {
     /// Scan-to-map alignments taken into the estimate.
     pub alignments: u32,
 }
-
-/// A hold of the collision monitor is reported once it lasts this long (shorter ones are the
-/// approach check easing the base past something).
-const HOLD_REPORT_AFTER: Duration = Duration::from_millis(500);
-
-/// A turn in place held this long goes the other way round.
-const TURN_FLIP_AFTER: Duration = Duration::from_secs(1);
 
 /// `robot` with its footprint grown by `margin_m` on every side.
 fn grown(robot: &world::RobotConfig, margin_m: f64) -> world::RobotConfig {
@@ -210,14 +203,14 @@ pub struct MissionCore {
     /// The robot with its footprint grown by the turning margin.
     pub(super) turn_robot: world::RobotConfig,
     /// Since when the collision monitor has held the base (motion asked, none let through).
-    monitor_hold_since: Option<Duration>,
+    pub(super) monitor_hold_since: Option<Duration>,
     /// The hold was reported.
-    hold_reported: bool,
+    pub(super) hold_reported: bool,
     /// A turn in place the monitor held goes the other way round (the sign of the yaw rate)
     /// until the base drives on.
-    forced_turn: Option<f32>,
+    pub(super) forced_turn: Option<f32>,
     /// Since when motion is sent and none measured.
-    stall_since: Option<Duration>,
+    pub(super) stall_since: Option<Duration>,
     pub(super) stats: CoreStats,
 }
 
@@ -337,164 +330,6 @@ impl MissionCore {
         } else {
             MonitorMode::Normal
         };
-    }
-
-    /// A turn in place held by the monitor (a chair at the corner that would swing into it) goes
-    /// the long way round instead; back to normal once the base drives on or stops turning.
-    fn turn_the_other_way(&mut self) {
-        let Some(sign) = self.forced_turn else {
-            return;
-        };
-        let v = self.velocity;
-        if v.speed_mps.abs() < 1e-3 && v.yaw_rate_radps != 0.0 {
-            self.velocity.yaw_rate_radps = sign * v.yaw_rate_radps.abs();
-        } else {
-            self.forced_turn = None;
-        }
-    }
-
-    /// On the tight stretch next to a standing spot: the last metres of a docking, the first
-    /// ones backing out.
-    fn docking(&self) -> bool {
-        let here = self.localiser.estimate();
-        let near = |xy: [f64; 2]| {
-            (xy[0] - here.x_m).hypot(xy[1] - here.y_m) <= super::legs::DOCKING_SHAPE_RANGE_M
-        };
-        match (&self.phase, self.dock_goal) {
-            (Some(Phase::Following { .. }), Some(goal)) => near(goal),
-            (Some(Phase::Reversing { start, .. }), _) => near([start.x_m, start.y_m]),
-            _ => false,
-        }
-    }
-
-    /// The collision monitor's holds and stalls: reported when they start and end; a hold that
-    /// lasts (an obstacle that does not go away), or a stall (motion sent, none measured: the
-    /// base pushes against something), fails the leg, which is then planned again from here.
-    fn watch_motion(&mut self, inputs: &CycleInputs<'_>, outputs: &mut CycleOutputs) {
-        let now = inputs.now;
-        // Held: the core asks for motion and the monitor lets (almost) none through.
-        let asked =
-            self.velocity.speed_mps.abs() >= 0.01 || self.velocity.yaw_rate_radps.abs() >= 0.02;
-        let let_through =
-            inputs.sent.speed_mps.abs() >= 0.02 || inputs.sent.yaw_rate_radps.abs() >= 0.05;
-        let holding = (asked && !let_through)
-            || matches!(inputs.monitor, MonitorAction::Stop | MonitorAction::Stale)
-                && self.monitor_hold_since.is_some();
-        match (holding, self.monitor_hold_since) {
-            (true, None) => self.monitor_hold_since = Some(now),
-            (true, Some(since))
-                if self.forced_turn.is_none()
-                    && self.velocity.speed_mps.abs() < 1e-3
-                    && self.velocity.yaw_rate_radps != 0.0
-                    && now.saturating_sub(since) >= TURN_FLIP_AFTER =>
-            {
-                // A turn in place held: try the other way round (reported), the hold counted
-                // afresh.
-                self.forced_turn = Some(-self.velocity.yaw_rate_radps.signum());
-                self.monitor_hold_since = Some(now);
-                self.event(
-                    EventKind::Obstacle,
-                    now,
-                    format_args!("collision monitor: turn held, turning the other way round"),
-                    outputs,
-                );
-            }
-            (true, Some(since)) => {
-                if !self.hold_reported && now.saturating_sub(since) >= HOLD_REPORT_AFTER {
-                    self.hold_reported = true;
-                    self.stats.monitor_holds += 1;
-                    let why = match inputs.monitor {
-                        MonitorAction::Stale => "no fresh scan",
-                        MonitorAction::Stop => "an obstacle in the stop zone",
-                        _ => "an obstacle ahead",
-                    };
-                    self.event(
-                        EventKind::Obstacle,
-                        now,
-                        format_args!("collision monitor: base held ({why})"),
-                        outputs,
-                    );
-                }
-            }
-            (false, Some(since)) => {
-                self.monitor_hold_since = None;
-                if std::mem::take(&mut self.hold_reported)
-                    && matches!(self.state, MissionState::Running)
-                {
-                    self.event(
-                        EventKind::Obstacle,
-                        now,
-                        format_args!(
-                            "collision monitor: clear again after {:.1} s",
-                            now.saturating_sub(since).as_secs_f64()
-                        ),
-                        outputs,
-                    );
-                }
-            }
-            (false, None) => {}
-        }
-        let sent = inputs.sent;
-        let measured = inputs.base.odometry;
-        // Pushing: a clear command; stalled: a quarter of it or less comes out (a base against
-        // a chair creeps by millimetres as its drives slip and catch).
-        let (sv, sw) = (f64::from(sent.speed_mps), f64::from(sent.yaw_rate_radps));
-        let pushing = sv.abs() >= 0.05 || sw.abs() >= 0.15;
-        let still = measured.speed_mps.abs() <= 0.25 * sv.abs() + 0.005
-            && measured.yaw_rate_radps.abs() <= 0.25 * sw.abs() + 0.01;
-        if pushing && still && inputs.base.driving {
-            let since = *self.stall_since.get_or_insert(now);
-            if now.saturating_sub(since) >= self.config.stall_after {
-                self.stall_since = None;
-                self.stats.stalls += 1;
-                self.velocity = Twist::ZERO;
-                if let Some(step) = self.current_step()
-                    && matches!(self.state, MissionState::Running)
-                    && self.phase.is_some()
-                {
-                    self.event(
-                        EventKind::Obstacle,
-                        now,
-                        format_args!(
-                            "stall: {:.2} m/s {:.2} rad/s sent, no motion measured for {:.1} s",
-                            sent.speed_mps,
-                            sent.yaw_rate_radps,
-                            self.config.stall_after.as_secs_f64()
-                        ),
-                        outputs,
-                    );
-                    self.phase =
-                        self.leg_failed(&step, now, "stalled against an obstacle", outputs);
-                }
-            }
-        } else {
-            self.stall_since = None;
-        }
-        if let Some(since) = self.monitor_hold_since {
-            let limit = if self.docking() {
-                self.config.docking_blocked_timeout
-            } else {
-                self.config.blocked_timeout
-            };
-            let leg_running = matches!(
-                self.phase,
-                Some(Phase::Following { .. } | Phase::Aligning { .. } | Phase::Reversing { .. })
-            );
-            if leg_running
-                && matches!(self.state, MissionState::Running)
-                && now.saturating_sub(since) >= limit
-                && let Some(step) = self.current_step()
-            {
-                // Counted again from now: the new leg gets its own time.
-                self.monitor_hold_since = Some(now);
-                let what = if self.docking() {
-                    "the standing spot is taken (the scan sees something there)"
-                } else {
-                    "blocked by an obstacle the scan sees"
-                };
-                self.phase = self.leg_failed(&step, now, what, outputs);
-            }
-        }
     }
 
     fn arm_reading(&mut self, inputs: &CycleInputs<'_>, outputs: &mut CycleOutputs) {

@@ -10,7 +10,7 @@ use world::nav::OccupancyGrid;
 use world::{RobotConfig, Scene};
 
 use super::*;
-use crate::executive::cycle::BaseReading;
+use crate::executive::cycle::{BaseReading, MonitorAction};
 use crate::executive::unload::{ArmFault, SkillStatus, solve_tray};
 use crate::executive::worker::{Answer, FollowerPath, Job};
 use crate::executive::{AbortReason, ArmSnapshot, ExecutiveConfig, MissionState};

@@ -38,6 +38,7 @@ pub mod base;
 pub mod cycle;
 pub mod legs;
 pub mod mission;
+pub mod motion_watch;
 pub mod plan_check;
 pub mod range;
 pub mod scan_match;
