@@ -6,6 +6,14 @@ use heapless::Vec;
 
 use crate::{Pose2, Twist, wrap_angle};
 
+/// A last segment at least this long (m) sets the direction the base finishes in: the
+/// look-ahead point runs on along it past the goal, and being level with the goal arrives.
+const MIN_FINAL_SEGMENT_M: f32 = 0.1;
+
+/// Level with the goal, the path counts as done when the base is within this fraction of the
+/// look-ahead distance of the last segment's line.
+const ARRIVE_BESIDE_FACTOR: f32 = 0.5;
+
 /// Follower tuning.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct FollowerConfig {
@@ -161,7 +169,29 @@ impl<const N: usize> PathFollower<N> {
         (dist(p, [pose.x_m, pose.y_m]), p)
     }
 
-    /// The look-ahead point: `lookahead_m` along the path from the projection of the pose.
+    /// On a long enough last segment: how far the pose still is from the goal along the
+    /// segment (negative once past it) and how far beside the segment's line, m.
+    fn final_track(&self, pose: &Pose2) -> Option<(f32, f32)> {
+        let n = self.path.len();
+        if n < 2 || self.segment + 2 < n {
+            return None;
+        }
+        let (a, b) = (self.path[n - 2], self.path[n - 1]);
+        let len = dist(a, b);
+        if len < MIN_FINAL_SEGMENT_M {
+            return None;
+        }
+        let u = [(b[0] - a[0]) / len, (b[1] - a[1]) / len];
+        let p = [pose.x_m - a[0], pose.y_m - a[1]];
+        let along_left = len - (p[0] * u[0] + p[1] * u[1]);
+        let beside = (u[0] * p[1] - u[1] * p[0]).abs();
+        Some((along_left, beside))
+    }
+
+    /// The look-ahead point: `lookahead_m` along the path from the projection of the pose;
+    /// past the end of a long enough last segment, on its extension, so that the base closes
+    /// in on the line near the goal rather than turning toward the goal point (a pose a few
+    /// centimetres beside a goal would otherwise ask for a sharp turn next to a table).
     fn lookahead_point(&self, pose: &Pose2) -> [f32; 2] {
         let last = self.path[self.path.len() - 1];
         if self.path.len() == 1 {
@@ -182,6 +212,16 @@ impl<const N: usize> PathFollower<N> {
             left -= d;
             from = to;
         }
+        let n = self.path.len();
+        let before = self.path[n - 2];
+        let len = dist(before, last);
+        if len >= MIN_FINAL_SEGMENT_M {
+            let t = left.max(0.0) / len;
+            return [
+                last[0] + t * (last[0] - before[0]),
+                last[1] + t * (last[1] - before[1]),
+            ];
+        }
         last
     }
 
@@ -201,9 +241,19 @@ impl<const N: usize> PathFollower<N> {
             }
         }
         let to_goal = dist([pose.x_m, pose.y_m], last);
-        let remaining = self.remaining_m(pose).max(to_goal);
+        let mut remaining = self.remaining_m(pose).max(to_goal);
         if to_goal <= self.config.goal_tolerance_m {
             return FollowStep::Arrived;
+        }
+        if let Some((along_left, beside)) = self.final_track(pose) {
+            // Level with the goal (or past it) and close to the line: done; the rest is beside
+            // the line, which a turn next to the goal would only make worse.
+            if along_left <= self.config.goal_tolerance_m
+                && beside <= ARRIVE_BESIDE_FACTOR * self.config.lookahead_m
+            {
+                return FollowStep::Arrived;
+            }
+            remaining = along_left.max(0.0);
         }
         let target = self.lookahead_point(pose);
         let dx = target[0] - pose.x_m;
@@ -256,6 +306,38 @@ mod tests {
             max_dev = max_dev.max(pose.y_m.abs().min((pose.x_m - 2.0).abs()));
         }
         (pose, false, max_dev)
+    }
+
+    #[test]
+    fn finishes_a_straight_line_beside_the_goal_without_turning_to_it() {
+        // A docking line: 1 m straight along -y. The estimate jumps 6 cm sideways 8 cm before
+        // the goal (a fix arrives). Steering at the goal point would turn the base by more
+        // than a radian next to the table; the follower closes in on the line instead and
+        // arrives level with the goal.
+        let mut f: PathFollower<8> = PathFollower::new(FollowerConfig::default());
+        f.set_path(&[[0.0, 1.0], [0.0, 0.0]]).unwrap();
+        let mut pose = Pose2::new(0.06, 0.08, -core::f32::consts::FRAC_PI_2);
+        let mut worst_turn: f32 = 0.0;
+        let mut arrived = false;
+        for _ in 0..500 {
+            match f.step(&pose) {
+                FollowStep::Drive(t) => pose = pose.integrate(t, 0.02),
+                FollowStep::Arrived => {
+                    arrived = true;
+                    break;
+                }
+                FollowStep::NoPath => break,
+            }
+            worst_turn =
+                worst_turn.max(wrap_angle(pose.yaw_rad + core::f32::consts::FRAC_PI_2).abs());
+        }
+        assert!(arrived, "never arrived: {pose:?}");
+        assert!(worst_turn < 0.5, "turned {worst_turn} rad off the line");
+        assert!(pose.y_m.abs() <= 0.06 && pose.x_m.abs() <= 0.07, "{pose:?}");
+        // Far beside the line, level with the goal is not arrival.
+        f.set_path(&[[0.0, 1.0], [0.0, 0.0]]).unwrap();
+        let off = Pose2::new(0.4, 0.0, -core::f32::consts::FRAC_PI_2);
+        assert!(matches!(f.step(&off), FollowStep::Drive(_)));
     }
 
     #[test]

@@ -24,13 +24,27 @@ pub const REVERSE_SPEED_MPS: f32 = 0.15;
 /// far behind a table goal, then drives straight in.
 pub const DOCKING_DISTANCES_M: [f64; 5] = [1.0, 0.75, 0.45, 0.3, 0.15];
 
-/// The last this many metres to a docking goal (and the first ones backing out) use the
-/// collision monitor's docking shape at crawl speed.
+/// At least the last this many metres to a docking goal (and the first ones backing out) use
+/// the collision monitor's docking shape at crawl speed; a longer straight stretch, checked
+/// free with [`DOCKING_LINE_MARGIN_M`], uses it all the way.
 pub const DOCKING_SHAPE_RANGE_M: f64 = 0.5;
 
 /// Margin around the footprint for the straight docking line at the goal's heading (m): the
 /// monitor's docking shape.
 pub const DOCKING_LINE_MARGIN_M: f64 = 0.01;
+
+/// Margin around the footprint for a sound docking line (m): the monitor's docking shape plus
+/// three sigmas of the range sensor's noise, so passing furniture does not trip the monitor.
+/// Lines this free are preferred, a few centimetres along the table if need be
+/// ([`DOCK_SHIFTS_M`]); a line free only by [`DOCKING_LINE_MARGIN_M`] is the fallback.
+pub const SOUND_LINE_MARGIN_M: f64 = 0.04;
+
+/// Sideways shifts of a docking goal tried, nearest first (m, across the goal's heading): the
+/// arm plans from the pose the base reaches, so a few centimetres along the table cost nothing
+/// and can buy a clear line in past a chair.
+pub const DOCK_SHIFTS_M: [f64; 11] = [
+    0.0, 0.02, -0.02, 0.04, -0.04, 0.06, -0.06, 0.08, -0.08, 0.1, -0.1,
+];
 
 /// Margin around the footprint for turning in place at a pre-goal (m): the monitor's stop zone
 /// plus a few centimetres of localisation error.
@@ -143,8 +157,11 @@ impl MissionCore {
                     ];
                     match self.follower.set_path(&points) {
                         Ok(()) => {
-                            // The last metres use the collision monitor's docking shape.
-                            self.dock_goal = Some([goal[0], goal[1]]);
+                            // The stretch was checked free with the docking shape's margin:
+                            // the monitor uses that shape on all of it (and on at least the
+                            // last DOCKING_SHAPE_RANGE_M).
+                            let range = (goal[3] + 0.05).max(DOCKING_SHAPE_RANGE_M);
+                            self.dock_goal = Some([goal[0], goal[1], range]);
                             Some(Phase::Following {
                                 deadline: self.leg_deadline(step, pose, now),
                             })
@@ -222,10 +239,10 @@ impl MissionCore {
             .steps
             .get(self.step_index + 1)
             .is_some_and(|n| matches!(n.kind(), Ok(TaskStepKind::Unload | TaskStepKind::Load)));
-        if table_next && let Some(d) = self.free_stretch(step.x_m, step.y_m, step.yaw_rad) {
+        if table_next && let Some((x, y, d)) = self.docking_spot(step) {
             let (s, c) = step.yaw_rad.sin_cos();
-            to = (step.x_m - c * d, step.y_m - s * d);
-            self.dock = Some([step.x_m, step.y_m, step.yaw_rad]);
+            to = (x - c * d, y - s * d);
+            self.dock = Some([x, y, step.yaw_rad, d]);
         }
         outputs.job = Some(Job::Path {
             id,
@@ -237,45 +254,96 @@ impl MissionCore {
 
     /// How far behind the pose (`x`, `y`, `yaw`) the base can stand and still drive straight
     /// to it: the longest of [`DOCKING_DISTANCES_M`] whose straight line is free for the
-    /// footprint at `yaw` (with [`DOCKING_LINE_MARGIN_M`]) and where a turn in place is free
-    /// (with [`TURN_MARGIN_M`], every 15 degrees); failing that, the longest free line. The
-    /// pre-goal of a docking (behind a table goal) and the end of a back-out (behind the base
-    /// at the table).
+    /// footprint at `yaw` (with [`SOUND_LINE_MARGIN_M`], else [`DOCKING_LINE_MARGIN_M`]) and
+    /// where a turn in place is free (with [`TURN_MARGIN_M`], every 15 degrees); failing that,
+    /// the longest free line. The pre-goal of a docking (behind a table goal) and the end of a
+    /// back-out (behind the base at the table).
     fn free_stretch(&self, x: f64, y: f64, yaw: f64) -> Option<f64> {
-        let (s, c) = yaw.sin_cos();
-        let at = |d: f64, heading: f64, robot: &world::RobotConfig| {
-            !world::base_collides(
-                &self.scene,
-                robot,
-                world::BasePose {
-                    x_m: x - c * d,
-                    y_m: y - s * d,
-                    yaw_rad: heading,
-                },
-            )
-        };
-        let line_free = |d: f64| {
-            (0..=((d / 0.05).ceil() as usize))
-                .all(|k| at((k as f64 * 0.05).min(d), yaw, &self.line_robot))
-        };
-        let turn_free = |d: f64| {
-            (0..12).all(|k| {
-                at(
-                    d,
-                    yaw + f64::from(k) * std::f64::consts::PI / 12.0,
-                    &self.turn_robot,
-                )
+        self.sound_stretch(x, y, yaw)
+            .or_else(|| self.stretch_with(x, y, yaw, &self.line_robot))
+    }
+
+    /// Where to dock for `step`, and from how far: the goal, or the nearest of
+    /// [`DOCK_SHIFTS_M`] along the table, whose line in is free with [`SOUND_LINE_MARGIN_M`]
+    /// and whose pre-goal is free to turn at; failing that, the goal with any free stretch.
+    fn docking_spot(&self, step: &TaskStep) -> Option<(f64, f64, f64)> {
+        let (s, c) = step.yaw_rad.sin_cos();
+        DOCK_SHIFTS_M
+            .iter()
+            .find_map(|shift| {
+                let (x, y) = (step.x_m - s * shift, step.y_m + c * shift);
+                self.sound_stretch(x, y, step.yaw_rad).map(|d| (x, y, d))
             })
-        };
+            .or_else(|| {
+                self.free_stretch(step.x_m, step.y_m, step.yaw_rad)
+                    .map(|d| (step.x_m, step.y_m, d))
+            })
+    }
+
+    /// The longest stretch whose line is free with [`SOUND_LINE_MARGIN_M`] and whose end is
+    /// free to turn at.
+    fn sound_stretch(&self, x: f64, y: f64, yaw: f64) -> Option<f64> {
+        DOCKING_DISTANCES_M.iter().copied().find(|d| {
+            self.line_free(x, y, yaw, *d, &self.sound_line_robot) && self.turn_free(x, y, yaw, *d)
+        })
+    }
+
+    /// Whether the footprint (of `robot`) at `yaw` is free all along the line from `d` behind
+    /// (`x`, `y`) to it, every 5 cm.
+    fn line_free(&self, x: f64, y: f64, yaw: f64, d: f64, robot: &world::RobotConfig) -> bool {
+        (0..=((d / 0.05).ceil() as usize))
+            .all(|k| self.footprint_free(x, y, yaw, (k as f64 * 0.05).min(d), yaw, robot))
+    }
+
+    /// Whether a turn in place `d` behind (`x`, `y`) along `yaw` is free (with
+    /// [`TURN_MARGIN_M`], every 15 degrees).
+    fn turn_free(&self, x: f64, y: f64, yaw: f64, d: f64) -> bool {
+        (0..12).all(|k| {
+            let heading = yaw + f64::from(k) * std::f64::consts::PI / 12.0;
+            self.footprint_free(x, y, yaw, d, heading, &self.turn_robot)
+        })
+    }
+
+    /// Whether `robot`'s footprint at `heading`, `d` behind (`x`, `y`) along `yaw`, is free.
+    fn footprint_free(
+        &self,
+        x: f64,
+        y: f64,
+        yaw: f64,
+        d: f64,
+        heading: f64,
+        robot: &world::RobotConfig,
+    ) -> bool {
+        let (s, c) = yaw.sin_cos();
+        !world::base_collides(
+            &self.scene,
+            robot,
+            world::BasePose {
+                x_m: x - c * d,
+                y_m: y - s * d,
+                yaw_rad: heading,
+            },
+        )
+    }
+
+    /// The longest line free for `line_robot` whose end is free to turn at, else the longest
+    /// free line.
+    fn stretch_with(
+        &self,
+        x: f64,
+        y: f64,
+        yaw: f64,
+        line_robot: &world::RobotConfig,
+    ) -> Option<f64> {
         let lines: heapless::Vec<f64, 5> = DOCKING_DISTANCES_M
             .iter()
             .copied()
-            .filter(|d| line_free(*d))
+            .filter(|d| self.line_free(x, y, yaw, *d, line_robot))
             .collect();
         lines
             .iter()
             .copied()
-            .find(|d| turn_free(*d))
+            .find(|d| self.turn_free(x, y, yaw, *d))
             .or_else(|| lines.first().copied())
     }
 

@@ -153,7 +153,7 @@ pub struct MissionCore {
     pub(super) localiser: Localiser,
     pub(super) follower: PathFollower<MAX_PATH_POINTS>,
     /// While driving to a pre-goal: the goal the base then docks at, straight ahead.
-    pub(super) dock: Option<[f64; 3]>,
+    pub(super) dock: Option<[f64; 4]>,
     /// The last step done was at the table: back out before the next leg.
     pub(super) at_table: bool,
     /// The arm's way to its carry pose (once, while the first plan is asked for, before the
@@ -194,12 +194,16 @@ pub struct MissionCore {
     global_fix_received: Option<Duration>,
     /// Fixes refused for a stamp in the future.
     future_fixes: u64,
-    /// The goal of the docking stretch being driven (the monitor's docking shape near it).
-    pub(super) dock_goal: Option<[f64; 2]>,
+    /// The goal of the docking stretch being driven and how near it the monitor uses its
+    /// docking shape: `[x, y, range]`.
+    pub(super) dock_goal: Option<[f64; 3]>,
     /// The scene (static map) for footprint checks at a true heading.
     pub(super) scene: Arc<world::Scene>,
     /// The robot with its footprint grown by the docking line's margin.
     pub(super) line_robot: world::RobotConfig,
+    /// The robot with its footprint grown by the sound docking line's margin (clear of the
+    /// range sensor's noise).
+    pub(super) sound_line_robot: world::RobotConfig,
     /// The robot with its footprint grown by the turning margin.
     pub(super) turn_robot: world::RobotConfig,
     /// Since when the collision monitor has held the base (motion asked, none let through).
@@ -225,6 +229,7 @@ impl MissionCore {
         objects: usize,
     ) -> Self {
         let line_robot = grown(&config.robot, super::legs::DOCKING_LINE_MARGIN_M);
+        let sound_line_robot = grown(&config.robot, super::legs::SOUND_LINE_MARGIN_M);
         let turn_robot = grown(&config.robot, super::legs::TURN_MARGIN_M);
         let remaining = if objects >= 64 {
             u64::MAX
@@ -267,6 +272,7 @@ impl MissionCore {
             future_fixes: 0,
             dock_goal: None,
             line_robot,
+            sound_line_robot,
             turn_robot,
             scene,
             monitor_hold_since: None,

@@ -42,8 +42,11 @@ impl Bench {
     }
 
     fn with_objects(objects: usize) -> Self {
+        Self::in_scene(Scene::empty_paper_room(), objects)
+    }
+
+    fn in_scene(scene: Scene, objects: usize) -> Self {
         let config = config();
-        let scene = Scene::empty_paper_room();
         let grid = Arc::new(OccupancyGrid::from_scene(&scene, &config.robot));
         let tray = solve_tray(&config.robot.place, &config.tray_slots).expect("tray");
         Self {
@@ -728,4 +731,49 @@ fn a_gripper_that_closes_on_nothing_is_reported_and_nothing_is_placed() {
     assert!(!b.saw(EventKind::UnloadSucceeded));
     assert_eq!(b.core.stats().unloads_ok, 0);
     assert_eq!(b.core.slots[0], None, "the belief is corrected");
+}
+
+/// The pre-goal the first leg of an unload from `goal` drives to, in `scene`.
+fn docking_pre_goal(scene: Scene, goal: [f64; 3]) -> (f64, f64) {
+    let mut b = Bench::in_scene(scene, 1);
+    let steps = [
+        TaskStep::navigate(goal[0], goal[1], goal[2], 20.0),
+        TaskStep::unload(0, grop_ipc::TableSide::Far, [goal[0], 6.0, 1.3], goal, 0.8),
+    ];
+    match b.running_with(&steps) {
+        Some(Job::Path { to, .. }) => to,
+        other => panic!("expected a path job, got {other:?}"),
+    }
+}
+
+#[test]
+fn a_docking_line_that_grazes_a_chair_moves_along_the_table_to_a_clear_one() {
+    // The default demo's third unload: a chair turned at the corner of the line in to the
+    // standing spot, 2.6 cm from the footprint (inside the range sensor's noise of the
+    // monitor's docking shape). The core docks a few centimetres along the table instead.
+    let goal = [3.07, 6.66, -std::f64::consts::FRAC_PI_2];
+    let clear = docking_pre_goal(Scene::empty_paper_room(), goal);
+    assert!(
+        (clear.0 - goal[0]).abs() < 1e-9,
+        "no shift needed: {clear:?}"
+    );
+    assert!(clear.1 > goal[1] + 0.9, "a full stretch: {clear:?}");
+    let mut scene = Scene::empty_paper_room();
+    scene.chairs.push(world::Chair {
+        x_m: 3.682,
+        y_m: 7.22,
+        yaw_rad: -2.26,
+        depth_m: 0.45,
+        width_m: 0.45,
+        height_m: 0.9,
+    });
+    let shifted = docking_pre_goal(scene, goal);
+    assert!(
+        shifted.0 <= goal[0] - 0.015 && shifted.0 >= goal[0] - 0.1,
+        "moved away from the chair along the table: {shifted:?}"
+    );
+    assert!(
+        shifted.1 > goal[1] + 0.4,
+        "a stretch to turn at: {shifted:?}"
+    );
 }

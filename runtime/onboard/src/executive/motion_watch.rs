@@ -33,16 +33,23 @@ impl MissionCore {
         }
     }
 
-    /// On the tight stretch next to a standing spot: the last metres of a docking, the first
-    /// ones backing out.
+    /// On the tight stretch next to a standing spot: the straight stretch of a docking, the
+    /// back-out (each checked free with the docking shape's margin before it is driven).
     pub(super) fn docking(&self) -> bool {
         let here = self.localiser.estimate();
-        let near = |xy: [f64; 2]| {
-            (xy[0] - here.x_m).hypot(xy[1] - here.y_m) <= super::legs::DOCKING_SHAPE_RANGE_M
-        };
+        let near = |x: f64, y: f64, range: f64| (x - here.x_m).hypot(y - here.y_m) <= range;
         match (&self.phase, self.dock_goal) {
-            (Some(Phase::Following { .. }), Some(goal)) => near(goal),
-            (Some(Phase::Reversing { start, .. }), _) => near([start.x_m, start.y_m]),
+            (Some(Phase::Following { .. }), Some([x, y, range])) => near(x, y, range),
+            (
+                Some(Phase::Reversing {
+                    start, distance_m, ..
+                }),
+                _,
+            ) => near(
+                start.x_m,
+                start.y_m,
+                super::legs::DOCKING_SHAPE_RANGE_M.max(distance_m + 0.05),
+            ),
             _ => false,
         }
     }
