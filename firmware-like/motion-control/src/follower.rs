@@ -6,8 +6,9 @@ use heapless::Vec;
 
 use crate::{Pose2, Twist, wrap_angle};
 
-/// A last segment at least this long (m) sets the direction the base finishes in: the
-/// look-ahead point runs on along it past the goal, and being level with the goal arrives.
+/// A line ([`PathFollower::set_line`]) at least this long (m) sets the direction the base
+/// finishes in: the look-ahead point runs on along it past the goal, and being level with the
+/// goal arrives.
 const MIN_FINAL_SEGMENT_M: f32 = 0.1;
 
 /// Level with the goal, the path counts as done when the base is within this fraction of the
@@ -95,6 +96,8 @@ pub struct PathFollower<const N: usize> {
     path: Vec<[f32; 2], N>,
     /// Index of the segment the base is on (progress never goes backwards).
     segment: usize,
+    /// Finish in line with the last segment ([`PathFollower::set_line`]).
+    in_line: bool,
 }
 
 impl<const N: usize> PathFollower<N> {
@@ -104,6 +107,7 @@ impl<const N: usize> PathFollower<N> {
             config,
             path: Vec::new(),
             segment: 0,
+            in_line: false,
         }
     }
 
@@ -130,6 +134,18 @@ impl<const N: usize> PathFollower<N> {
             let _ = self.path.push(*p);
         }
         self.segment = 0;
+        self.in_line = false;
+        Ok(())
+    }
+
+    /// Loads a straight line to drive along and finish in (a docking): past the goal the
+    /// look-ahead point runs on along the line, so the base closes in on the line rather than
+    /// turning toward the goal point, and it arrives once level with the goal (within half the
+    /// look-ahead distance of the line). A pose a few centimetres beside the goal, after a
+    /// fix moved the estimate, would otherwise ask for a sharp turn next to a table.
+    pub fn set_line(&mut self, from: [f32; 2], to: [f32; 2]) -> Result<(), PathError> {
+        self.set_path(&[from, to])?;
+        self.in_line = true;
         Ok(())
     }
 
@@ -169,11 +185,11 @@ impl<const N: usize> PathFollower<N> {
         (dist(p, [pose.x_m, pose.y_m]), p)
     }
 
-    /// On a long enough last segment: how far the pose still is from the goal along the
-    /// segment (negative once past it) and how far beside the segment's line, m.
+    /// On a line ([`PathFollower::set_line`]) long enough: how far the pose still is from the
+    /// goal along it (negative once past it) and how far beside it, m.
     fn final_track(&self, pose: &Pose2) -> Option<(f32, f32)> {
         let n = self.path.len();
-        if n < 2 || self.segment + 2 < n {
+        if !self.in_line || n < 2 || self.segment + 2 < n {
             return None;
         }
         let (a, b) = (self.path[n - 2], self.path[n - 1]);
@@ -189,9 +205,7 @@ impl<const N: usize> PathFollower<N> {
     }
 
     /// The look-ahead point: `lookahead_m` along the path from the projection of the pose;
-    /// past the end of a long enough last segment, on its extension, so that the base closes
-    /// in on the line near the goal rather than turning toward the goal point (a pose a few
-    /// centimetres beside a goal would otherwise ask for a sharp turn next to a table).
+    /// on a line ([`PathFollower::set_line`]) past the goal, on the line's extension.
     fn lookahead_point(&self, pose: &Pose2) -> [f32; 2] {
         let last = self.path[self.path.len() - 1];
         if self.path.len() == 1 {
@@ -215,7 +229,7 @@ impl<const N: usize> PathFollower<N> {
         let n = self.path.len();
         let before = self.path[n - 2];
         let len = dist(before, last);
-        if len >= MIN_FINAL_SEGMENT_M {
+        if self.in_line && len >= MIN_FINAL_SEGMENT_M {
             let t = left.max(0.0) / len;
             return [
                 last[0] + t * (last[0] - before[0]),
@@ -315,7 +329,13 @@ mod tests {
         // than a radian next to the table; the follower closes in on the line instead and
         // arrives level with the goal.
         let mut f: PathFollower<8> = PathFollower::new(FollowerConfig::default());
+        // A path (not a line) level with the goal and 6 cm beside it has not arrived.
         f.set_path(&[[0.0, 1.0], [0.0, 0.0]]).unwrap();
+        let level = Pose2::new(0.06, 0.0, -core::f32::consts::FRAC_PI_2);
+        assert!(matches!(f.step(&level), FollowStep::Drive(_)));
+        f.set_line([0.0, 1.0], [0.0, 0.0]).unwrap();
+        assert_eq!(f.step(&level), FollowStep::Arrived);
+        f.set_line([0.0, 1.0], [0.0, 0.0]).unwrap();
         let mut pose = Pose2::new(0.06, 0.08, -core::f32::consts::FRAC_PI_2);
         let mut worst_turn: f32 = 0.0;
         let mut arrived = false;
@@ -335,7 +355,7 @@ mod tests {
         assert!(worst_turn < 0.5, "turned {worst_turn} rad off the line");
         assert!(pose.y_m.abs() <= 0.06 && pose.x_m.abs() <= 0.07, "{pose:?}");
         // Far beside the line, level with the goal is not arrival.
-        f.set_path(&[[0.0, 1.0], [0.0, 0.0]]).unwrap();
+        f.set_line([0.0, 1.0], [0.0, 0.0]).unwrap();
         let off = Pose2::new(0.4, 0.0, -core::f32::consts::FRAC_PI_2);
         assert!(matches!(f.step(&off), FollowStep::Drive(_)));
     }

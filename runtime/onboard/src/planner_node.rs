@@ -537,7 +537,9 @@ impl PlannerNode {
         if reason == ReplanReason::MissionStart {
             self.tried.iter_mut().for_each(Vec::clear);
         }
-        if reason == ReplanReason::UnloadFailed
+        // GROP+ retries an unload elsewhere when it failed at the table, and when the leg to its
+        // standing spot failed (no way in, blocked, stalled): the spot is tried either way.
+        if matches!(reason, ReplanReason::UnloadFailed | ReplanReason::LegFailed)
             && self.retry == RetryPolicy::GropPlus
             && failed_bit != 0
             && self.current.is_some()
@@ -550,11 +552,11 @@ impl PlannerNode {
         }
         match (reason, self.retry) {
             // A leg that could not be driven to an unload's goal failed that unload (the
-            // paper's no-retry: go on with the rest).
-            (ReplanReason::UnloadFailed, RetryPolicy::None | RetryPolicy::GropPlus)
-            | (ReplanReason::LegFailed, RetryPolicy::None)
-                if failed_bit != 0 || reason == ReplanReason::UnloadFailed =>
-            {
+            // paper's no-retry: go on with the rest; GROP+ once no other spot is left).
+            (
+                ReplanReason::UnloadFailed | ReplanReason::LegFailed,
+                RetryPolicy::None | RetryPolicy::GropPlus,
+            ) if failed_bit != 0 || reason == ReplanReason::UnloadFailed => {
                 let left = remaining & !failed_bit;
                 if self.current.is_some() {
                     self.publish_remainder(request, None, left, on_board & left, now)
@@ -830,6 +832,7 @@ impl PlannerNode {
         let mut steps = Vec::new();
         let mut feasibility_of = Vec::with_capacity(2 * objects.len());
         let mut at = pose_xy;
+        let mut capacity = capacity;
         if n_board > 0 {
             let mut problem = TaskProblem::from_heatmaps(
                 &self.scene,
@@ -852,8 +855,21 @@ impl PlannerNode {
             if let Some(last) = decision.plan.unloads.last() {
                 at = decision.goal_of(last).xy;
             }
+            // An object on board that the decision leaves out (not worth its cost) keeps its
+            // slot for the trips after.
+            let kept = n_board.saturating_sub(decision.plan.unloads.len());
+            capacity = capacity.saturating_sub(kept);
         }
-        let rest = &objects[n_board..];
+        let rest = if capacity == 0 {
+            log::warn!(
+                "the tray stays full of objects the plan does not unload: {} objects at the \
+                 station are not planned",
+                objects.len() - n_board
+            );
+            &objects[..0]
+        } else {
+            &objects[n_board..]
+        };
         if !rest.is_empty() {
             let mut problem = TaskProblem::from_heatmaps(
                 &self.scene,
@@ -1023,7 +1039,6 @@ impl PlannerNode {
             return self.plan_and_publish(request, left, on_board, now);
         };
         let frame_id = current.source_frame_id;
-        let free = self.tray_free(request, left)?;
         // Groups of (navigate, unload): first the objects on board (the retry first), then, per
         // trip of the current plan, its objects still at the station (one station visit each).
         let mut groups: Vec<Vec<(TaskStep, TaskStep)>> = vec![first.into_iter().collect()];
@@ -1052,8 +1067,25 @@ impl PlannerNode {
             self.scene.loading_station.x_m,
             self.scene.loading_station.y_m,
         );
-        // A trip of the current plan larger than the tray's free slots (an object given up stays
-        // on the tray) becomes several station visits, in the same order.
+        // The tray's free slots for the trips: what is on board less what the first group
+        // unloads (an object given up, or one the current plan does not unload, stays on the
+        // tray). None free: the objects still at the station cannot be fetched.
+        let unloaded_first = groups[0]
+            .iter()
+            .filter_map(|(_, u)| u.object().ok())
+            .fold(0u64, |m, o| m | (1u64 << o));
+        let kept = (request.on_board_mask & !unloaded_first).count_ones() as usize;
+        let free = self.capacity.saturating_sub(kept);
+        if free == 0 && groups.len() > 1 {
+            log::warn!(
+                "request {}: the tray stays full ({kept} objects kept on it); the objects at \
+                 the station are not planned",
+                request.request_id
+            );
+            groups.truncate(1);
+        }
+        // A trip of the current plan larger than the tray's free slots becomes several station
+        // visits, in the same order.
         let groups: Vec<Vec<(TaskStep, TaskStep)>> = groups
             .into_iter()
             .enumerate()

@@ -65,7 +65,7 @@ impl MissionCore {
     ) -> Option<Phase> {
         let now = inputs.now;
         match phase {
-            None => Some(self.start_leg(step, pose, now, outputs)),
+            None => self.start_leg(step, pose, now, outputs),
             Some(Phase::PathRequested { id, since }) => match inputs.answer {
                 Some(Answer::Path(answer_id, Ok(points))) if *answer_id == id => {
                     match self.follower.set_path(points) {
@@ -96,7 +96,7 @@ impl MissionCore {
             }) => {
                 // Backed out far enough, or blocked behind past the deadline: plan from here.
                 if pose.distance_m(&start) >= distance_m || now > deadline {
-                    Some(self.request_path(step, pose, now, outputs))
+                    self.request_path(step, pose, now, outputs)
                 } else {
                     self.velocity = Twist::new(-REVERSE_SPEED_MPS, 0.0);
                     Some(Phase::Reversing {
@@ -151,11 +151,10 @@ impl MissionCore {
             Some(Phase::Settling { .. }) => match self.dock.take() {
                 Some(goal) => {
                     // At the pre-goal, facing the table: drive straight in to the goal.
-                    let points = [
+                    match self.follower.set_line(
                         [pose.x_m as f32, pose.y_m as f32],
                         [goal[0] as f32, goal[1] as f32],
-                    ];
-                    match self.follower.set_path(&points) {
+                    ) {
                         Ok(()) => {
                             // The stretch was checked free with the docking shape's margin:
                             // the monitor uses that shape on all of it (and on at least the
@@ -199,7 +198,7 @@ impl MissionCore {
         pose: PlanarPose,
         now: Duration,
         outputs: &mut CycleOutputs,
-    ) -> Phase {
+    ) -> Option<Phase> {
         if std::mem::take(&mut self.at_table) {
             // Straight back, away from the table, as far as the map allows (up to the docking
             // distance): turning in place next to the table would sweep the footprint into it.
@@ -208,12 +207,12 @@ impl MissionCore {
                 .free_stretch(pose.x_m, pose.y_m, pose.yaw_rad)
                 .unwrap_or(0.0);
             if distance_m > 0.0 {
-                return Phase::Reversing {
+                return Some(Phase::Reversing {
                     start: pose,
                     distance_m,
                     deadline: now
                         + Duration::from_secs_f64(3.0 * distance_m / REVERSE_SPEED_MPS as f64),
-                };
+                });
             }
         }
         self.request_path(step, pose, now, outputs)
@@ -228,7 +227,7 @@ impl MissionCore {
         pose: PlanarPose,
         now: Duration,
         outputs: &mut CycleOutputs,
-    ) -> Phase {
+    ) -> Option<Phase> {
         let id = self.next_job_id;
         self.next_job_id += 1;
         self.dock_goal = None;
@@ -239,7 +238,18 @@ impl MissionCore {
             .steps
             .get(self.step_index + 1)
             .is_some_and(|n| matches!(n.kind(), Ok(TaskStepKind::Unload | TaskStepKind::Load)));
-        if table_next && let Some((x, y, d)) = self.docking_spot(step) {
+        if table_next {
+            // No straight way in: the standing spot itself is not free on the map (the learned
+            // feasibility is no geometric check). Driving there and turning would push the
+            // base into the furniture; the leg fails before it starts.
+            let Some((x, y, d)) = self.docking_spot(step) else {
+                return self.leg_failed(
+                    step,
+                    now,
+                    "no straight way in to the standing spot",
+                    outputs,
+                );
+            };
             let (s, c) = step.yaw_rad.sin_cos();
             to = (x - c * d, y - s * d);
             self.dock = Some([x, y, step.yaw_rad, d]);
@@ -249,7 +259,7 @@ impl MissionCore {
             from: (pose.x_m, pose.y_m),
             to,
         });
-        Phase::PathRequested { id, since: now }
+        Some(Phase::PathRequested { id, since: now })
     }
 
     /// How far behind the pose (`x`, `y`, `yaw`) the base can stand and still drive straight
@@ -265,18 +275,25 @@ impl MissionCore {
 
     /// Where to dock for `step`, and from how far: the goal, or the nearest of
     /// [`DOCK_SHIFTS_M`] along the table, whose line in is free with [`SOUND_LINE_MARGIN_M`]
-    /// and whose pre-goal is free to turn at; failing that, the goal with any free stretch.
+    /// and whose pre-goal is free to turn at; failing that, the nearest with a line free by
+    /// [`DOCKING_LINE_MARGIN_M`] (at each spot, a pre-goal free to turn at first). None: no
+    /// spot within the shifts is free on the map.
     fn docking_spot(&self, step: &TaskStep) -> Option<(f64, f64, f64)> {
         let (s, c) = step.yaw_rad.sin_cos();
+        let yaw = step.yaw_rad;
+        let spot = |shift: &f64| (step.x_m - s * shift, step.y_m + c * shift);
         DOCK_SHIFTS_M
             .iter()
             .find_map(|shift| {
-                let (x, y) = (step.x_m - s * shift, step.y_m + c * shift);
-                self.sound_stretch(x, y, step.yaw_rad).map(|d| (x, y, d))
+                let (x, y) = spot(shift);
+                self.sound_stretch(x, y, yaw).map(|d| (x, y, d))
             })
             .or_else(|| {
-                self.free_stretch(step.x_m, step.y_m, step.yaw_rad)
-                    .map(|d| (step.x_m, step.y_m, d))
+                DOCK_SHIFTS_M.iter().find_map(|shift| {
+                    let (x, y) = spot(shift);
+                    self.stretch_with(x, y, yaw, &self.line_robot)
+                        .map(|d| (x, y, d))
+                })
             })
     }
 

@@ -161,6 +161,8 @@ pub struct MissionCore {
     parking: Parking,
     /// Legs failed in a row.
     pub(super) failed_legs: u32,
+    /// Plans refused in a row.
+    plans_refused: u32,
     /// The unload in progress (in place: a new one overwrites it, nothing is allocated).
     unload: Option<UnloadSequence>,
     pub(super) steps: Vec<TaskStep>,
@@ -247,6 +249,7 @@ impl MissionCore {
             at_table: false,
             parking: Parking::NotStarted,
             failed_legs: 0,
+            plans_refused: 0,
             unload: None,
             plan_id: 0,
             step_index: 0,
@@ -542,6 +545,15 @@ impl MissionCore {
         self.future_fixes
     }
 
+    /// A plan refused: the planner keeps answering what the executive cannot take, so after
+    /// [`super::PLANS_REFUSED_LIMIT`] in a row the mission is given up (stopped, not spun).
+    fn plan_refused(&mut self, now: Duration, outputs: &mut CycleOutputs) {
+        self.plans_refused += 1;
+        if self.plans_refused >= super::PLANS_REFUSED_LIMIT {
+            self.abort(AbortReason::PlansRefused, now, outputs);
+        }
+    }
+
     fn take_plan(&mut self, plan: &TaskPlanMsg, now: Duration, outputs: &mut CycleOutputs) {
         let Ok(steps) = plan.steps() else {
             self.event(
@@ -550,6 +562,7 @@ impl MissionCore {
                 format_args!("plan {} rejected: malformed", plan.plan_id),
                 outputs,
             );
+            self.plan_refused(now, outputs);
             return;
         };
         if let Err(defect) = self.check_steps(steps) {
@@ -559,6 +572,7 @@ impl MissionCore {
                 format_args!("plan {} rejected: {defect}", plan.plan_id),
                 outputs,
             );
+            self.plan_refused(now, outputs);
             return;
         }
         if let Err((i, count, slots)) = self.check_tray(steps) {
@@ -571,8 +585,10 @@ impl MissionCore {
                 ),
                 outputs,
             );
+            self.plan_refused(now, outputs);
             return;
         }
+        self.plans_refused = 0;
         self.stats.plans += 1;
         self.steps.clear();
         self.steps.extend_from_slice(steps);
@@ -977,9 +993,10 @@ impl MissionCore {
             AbortReason::BaseFault | AbortReason::SecondCommander => EventKind::BaseFault,
             AbortReason::ArmStopped => EventKind::ArmStopped,
             AbortReason::PlannerLost => EventKind::PeerLost,
-            AbortReason::ClockLost | AbortReason::Shutdown | AbortReason::Stuck => {
-                EventKind::MissionAborted
-            }
+            AbortReason::ClockLost
+            | AbortReason::Shutdown
+            | AbortReason::Stuck
+            | AbortReason::PlansRefused => EventKind::MissionAborted,
         };
         if kind != EventKind::MissionAborted {
             self.event(

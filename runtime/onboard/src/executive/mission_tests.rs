@@ -405,6 +405,16 @@ fn a_plan_that_overloads_the_tray_is_refused() {
         "{:?}",
         b.events
     );
+    assert_eq!(b.core.state(), MissionState::Running);
+    // A planner that keeps answering the same: the mission is given up, not spun for ever.
+    for _ in 1..crate::executive::PLANS_REFUSED_LIMIT {
+        b.step(|i| i.plans = std::slice::from_ref(&p));
+    }
+    assert_eq!(
+        b.core.state(),
+        MissionState::Aborted(AbortReason::PlansRefused)
+    );
+    assert_eq!(b.out.velocity, Twist::ZERO);
 }
 
 #[test]

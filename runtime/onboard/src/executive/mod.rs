@@ -245,7 +245,13 @@ pub enum AbortReason {
     Shutdown,
     /// Legs kept failing: no route from where the base stands.
     Stuck,
+    /// The planner kept answering with plans the executive refuses (the tray, the robot's
+    /// limits, a malformed plan): [`PLANS_REFUSED_LIMIT`] in a row.
+    PlansRefused,
 }
+
+/// Plans refused in a row before the mission is given up.
+pub const PLANS_REFUSED_LIMIT: u32 = 5;
 
 /// Counters for reports.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
