@@ -6,13 +6,8 @@ use heapless::Vec;
 
 use crate::{Pose2, Twist, wrap_angle};
 
-/// A line ([`PathFollower::set_line`]) at least this long (m) sets the direction the base
-/// finishes in: the look-ahead point runs on along it past the goal, and being level with the
-/// goal arrives.
-const MIN_FINAL_SEGMENT_M: f32 = 0.1;
-
-/// Level with the goal, the path counts as done when the base is within this fraction of the
-/// look-ahead distance of the last segment's line.
+/// At the end of a docking line ([`PathFollower::set_line`]), a goal that lies more to the side
+/// than ahead within this fraction of the look-ahead distance counts as reached.
 const ARRIVE_BESIDE_FACTOR: f32 = 0.5;
 
 /// Follower tuning.
@@ -138,11 +133,10 @@ impl<const N: usize> PathFollower<N> {
         Ok(())
     }
 
-    /// Loads a straight line to drive along and finish in (a docking): past the goal the
-    /// look-ahead point runs on along the line, so the base closes in on the line rather than
-    /// turning toward the goal point, and it arrives once level with the goal (within half the
-    /// look-ahead distance of the line). A pose a few centimetres beside the goal, after a
-    /// fix moved the estimate, would otherwise ask for a sharp turn next to a table.
+    /// Loads a straight line to drive in along (a docking): followed like a path, except that
+    /// near its end a goal that lies more to the side than ahead (within half the look-ahead
+    /// distance) counts as reached. A pose a few centimetres beside the goal, after a fix moved
+    /// the estimate, would otherwise turn the base in place next to a table.
     pub fn set_line(&mut self, from: [f32; 2], to: [f32; 2]) -> Result<(), PathError> {
         self.set_path(&[from, to])?;
         self.in_line = true;
@@ -185,27 +179,7 @@ impl<const N: usize> PathFollower<N> {
         (dist(p, [pose.x_m, pose.y_m]), p)
     }
 
-    /// On a line ([`PathFollower::set_line`]) long enough: how far the pose still is from the
-    /// goal along it (negative once past it) and how far beside it, m.
-    fn final_track(&self, pose: &Pose2) -> Option<(f32, f32)> {
-        let n = self.path.len();
-        if !self.in_line || n < 2 || self.segment + 2 < n {
-            return None;
-        }
-        let (a, b) = (self.path[n - 2], self.path[n - 1]);
-        let len = dist(a, b);
-        if len < MIN_FINAL_SEGMENT_M {
-            return None;
-        }
-        let u = [(b[0] - a[0]) / len, (b[1] - a[1]) / len];
-        let p = [pose.x_m - a[0], pose.y_m - a[1]];
-        let along_left = len - (p[0] * u[0] + p[1] * u[1]);
-        let beside = (u[0] * p[1] - u[1] * p[0]).abs();
-        Some((along_left, beside))
-    }
-
-    /// The look-ahead point: `lookahead_m` along the path from the projection of the pose;
-    /// on a line ([`PathFollower::set_line`]) past the goal, on the line's extension.
+    /// The look-ahead point: `lookahead_m` along the path from the projection of the pose.
     fn lookahead_point(&self, pose: &Pose2) -> [f32; 2] {
         let last = self.path[self.path.len() - 1];
         if self.path.len() == 1 {
@@ -226,16 +200,6 @@ impl<const N: usize> PathFollower<N> {
             left -= d;
             from = to;
         }
-        let n = self.path.len();
-        let before = self.path[n - 2];
-        let len = dist(before, last);
-        if self.in_line && len >= MIN_FINAL_SEGMENT_M {
-            let t = left.max(0.0) / len;
-            return [
-                last[0] + t * (last[0] - before[0]),
-                last[1] + t * (last[1] - before[1]),
-            ];
-        }
         last
     }
 
@@ -255,20 +219,11 @@ impl<const N: usize> PathFollower<N> {
             }
         }
         let to_goal = dist([pose.x_m, pose.y_m], last);
-        let mut remaining = self.remaining_m(pose).max(to_goal);
+        let remaining = self.remaining_m(pose).max(to_goal);
         if to_goal <= self.config.goal_tolerance_m {
             return FollowStep::Arrived;
         }
-        if let Some((along_left, beside)) = self.final_track(pose) {
-            // Level with the goal (or past it) and close to the line: done; the rest is beside
-            // the line, which a turn next to the goal would only make worse.
-            if along_left <= self.config.goal_tolerance_m
-                && beside <= ARRIVE_BESIDE_FACTOR * self.config.lookahead_m
-            {
-                return FollowStep::Arrived;
-            }
-            remaining = along_left.max(0.0);
-        }
+
         let target = self.lookahead_point(pose);
         let dx = target[0] - pose.x_m;
         let dy = target[1] - pose.y_m;
@@ -279,6 +234,11 @@ impl<const N: usize> PathFollower<N> {
         let heading_error = wrap_angle(libm::atan2f(y_b, x_b));
         let max_w = self.config.max_yaw_rate_radps;
         if heading_error.abs() > self.config.turn_in_place_above_rad {
+            if self.in_line && to_goal <= ARRIVE_BESIDE_FACTOR * self.config.lookahead_m {
+                // At the end of a docking line with the goal beside or behind (the estimate
+                // moved sideways): stop here rather than turn in place next to the table.
+                return FollowStep::Arrived;
+            }
             return FollowStep::Drive(Twist::new(0.0, max_w.copysign(heading_error)));
         }
         // v = min(cruise, sqrt(2 a d)): can still stop at the goal with the decel limit.
@@ -323,41 +283,44 @@ mod tests {
     }
 
     #[test]
-    fn finishes_a_straight_line_beside_the_goal_without_turning_to_it() {
-        // A docking line: 1 m straight along -y. The estimate jumps 6 cm sideways 8 cm before
-        // the goal (a fix arrives). Steering at the goal point would turn the base by more
-        // than a radian next to the table; the follower closes in on the line instead and
-        // arrives level with the goal.
-        let mut f: PathFollower<8> = PathFollower::new(FollowerConfig::default());
-        // A path (not a line) level with the goal and 6 cm beside it has not arrived.
-        f.set_path(&[[0.0, 1.0], [0.0, 0.0]]).unwrap();
-        let level = Pose2::new(0.06, 0.0, -core::f32::consts::FRAC_PI_2);
-        assert!(matches!(f.step(&level), FollowStep::Drive(_)));
-        f.set_line([0.0, 1.0], [0.0, 0.0]).unwrap();
-        assert_eq!(f.step(&level), FollowStep::Arrived);
-        f.set_line([0.0, 1.0], [0.0, 0.0]).unwrap();
-        let mut pose = Pose2::new(0.06, 0.08, -core::f32::consts::FRAC_PI_2);
-        let mut worst_turn: f32 = 0.0;
-        let mut arrived = false;
-        for _ in 0..500 {
-            match f.step(&pose) {
-                FollowStep::Drive(t) => pose = pose.integrate(t, 0.02),
-                FollowStep::Arrived => {
-                    arrived = true;
-                    break;
-                }
-                FollowStep::NoPath => break,
+    fn finishes_a_docking_line_beside_the_goal_without_turning_in_place() {
+        // A docking line: 1 m straight along -y. The estimate jumps 6 cm sideways 3 cm before
+        // the goal (a fix arrives). A path's follower turns in place toward the goal point,
+        // sweeping the footprint next to the table; a line's stops there instead.
+        let run = |line: bool| {
+            let mut f: PathFollower<8> = PathFollower::new(FollowerConfig::default());
+            if line {
+                f.set_line([0.0, 1.0], [0.0, 0.0]).unwrap();
+            } else {
+                f.set_path(&[[0.0, 1.0], [0.0, 0.0]]).unwrap();
             }
-            worst_turn =
-                worst_turn.max(wrap_angle(pose.yaw_rad + core::f32::consts::FRAC_PI_2).abs());
-        }
+            let mut pose = Pose2::new(0.06, 0.03, -core::f32::consts::FRAC_PI_2);
+            let mut worst_turn: f32 = 0.0;
+            for _ in 0..500 {
+                match f.step(&pose) {
+                    FollowStep::Drive(t) => pose = pose.integrate(t, 0.02),
+                    FollowStep::Arrived => return (true, worst_turn, pose),
+                    FollowStep::NoPath => break,
+                }
+                worst_turn =
+                    worst_turn.max(wrap_angle(pose.yaw_rad + core::f32::consts::FRAC_PI_2).abs());
+            }
+            (false, worst_turn, pose)
+        };
+        let (arrived, worst_turn, pose) = run(true);
         assert!(arrived, "never arrived: {pose:?}");
-        assert!(worst_turn < 0.5, "turned {worst_turn} rad off the line");
-        assert!(pose.y_m.abs() <= 0.06 && pose.x_m.abs() <= 0.07, "{pose:?}");
-        // Far beside the line, level with the goal is not arrival.
+        assert!(worst_turn < 0.1, "turned {worst_turn} rad off the line");
+        assert!(libm::hypotf(pose.x_m, pose.y_m) <= 0.07, "{pose:?}");
+        let (arrived, worst_turn, _) = run(false);
+        assert!(
+            arrived && worst_turn > 0.5,
+            "a path turns to its goal: {worst_turn}"
+        );
+        // A line whose goal is still ahead is driven as a path.
+        let mut f: PathFollower<8> = PathFollower::new(FollowerConfig::default());
         f.set_line([0.0, 1.0], [0.0, 0.0]).unwrap();
-        let off = Pose2::new(0.4, 0.0, -core::f32::consts::FRAC_PI_2);
-        assert!(matches!(f.step(&off), FollowStep::Drive(_)));
+        let ahead = Pose2::new(0.06, 0.5, -core::f32::consts::FRAC_PI_2);
+        assert!(matches!(f.step(&ahead), FollowStep::Drive(_)));
     }
 
     #[test]
