@@ -97,6 +97,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let report = running.finish(Duration::from_secs(900), &mut echo)?;
     bar.finish_and_clear();
     print_report(&report, started.elapsed(), spec.log.as_deref());
+    for line in crate::mission_end::explain(&report, &args.run_dir) {
+        println!("{line}");
+    }
     let picture = draw(&args, &scene, &report);
     if let Some(dir) = args.out.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;

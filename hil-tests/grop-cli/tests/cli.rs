@@ -57,6 +57,8 @@ fn demo_runs_the_closed_loop_and_reports_decision_steps_and_latency() {
     ] {
         assert!(out.contains(expected), "no {expected:?} in:\n{out}");
     }
+    // A mission that finished with no fault has nothing to explain.
+    assert!(!out.contains("why the mission ended"), "{out}");
     assert!(
         std::fs::metadata(&log).is_ok_and(|m| m.len() > 0),
         "no log at {log:?}"
@@ -71,6 +73,39 @@ fn demo_runs_the_closed_loop_and_reports_decision_steps_and_latency() {
         "executive.log",
     ] {
         assert!(run.join(f).is_file(), "{f} missing");
+    }
+}
+
+#[test]
+fn demo_says_why_a_faulted_mission_ended_and_what_to_do_next() {
+    let dir = tempfile::tempdir().unwrap();
+    let png = dir.path().join("demo.png");
+    let run = dir.path().join("run");
+    let o = grop(&[
+        "demo",
+        "--model",
+        &model(),
+        "--fault",
+        "kill-switch",
+        "--no-record",
+        "--out",
+        png.to_str().unwrap(),
+        "--run-dir",
+        run.to_str().unwrap(),
+    ]);
+    let out = text(&o);
+    assert!(o.status.success(), "{out}");
+    for expected in [
+        "mission Aborted",
+        "why the mission ended (aborted):",
+        "fault injected: kill-switch@driving at ",
+        "noticed by the RMP driver",
+        "MissionAborted: BaseFault",
+        "reaction: first zero base command at ",
+        "base stood still at ",
+        "next: release the base's kill switch",
+    ] {
+        assert!(out.contains(expected), "no {expected:?} in:\n{out}");
     }
 }
 
