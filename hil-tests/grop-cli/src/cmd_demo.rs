@@ -101,7 +101,7 @@ fn run_in_process(args: Args) -> anyhow::Result<()> {
     })?;
     let (scene, robot) = args.world.load()?;
     let targets: Vec<[f64; 3]> = scene.targets.iter().map(|t| t.as_array()).collect();
-    let mut psi = FcnEvaluator::load(&args.model)
+    let mut psi = FcnEvaluator::load(&crate::common::committed_file(&args.model))
         .with_context(|| format!("loading the feasibility network {}", args.model.display()))?;
 
     // The map: occupancy grid and its corner visibility graph, built once per map.

@@ -41,17 +41,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         "--retry {:?}: use grop-plus, none or replan",
         args.retry
     );
-    let model = std::fs::canonicalize(&args.model).or_else(|_| {
-        // From any working directory: the committed model in the workspace.
-        std::fs::canonicalize(
-            std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-                .join("../..")
-                .join(&args.model),
-        )
-    });
-    let model =
-        model.with_context(|| format!("the feasibility network {}", args.model.display()))?;
-    let bins = mission::binaries(!args.no_build)?;
+    // From any working directory: the committed model in the checkout.
+    let model = common::committed_file_abs(&args.model, "the feasibility network")?;
+    let bins = crate::common::mission_binaries(!args.no_build)?;
     let spec = MissionSpec {
         dir: args.run_dir.clone(),
         scene: scene.clone(),

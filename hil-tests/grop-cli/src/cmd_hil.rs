@@ -100,15 +100,7 @@ struct Row {
 }
 
 pub(crate) fn model_path(p: &std::path::Path) -> anyhow::Result<PathBuf> {
-    std::fs::canonicalize(p)
-        .or_else(|_| {
-            std::fs::canonicalize(
-                std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-                    .join("../..")
-                    .join(p),
-            )
-        })
-        .with_context(|| format!("the feasibility network {}", p.display()))
+    crate::common::committed_file_abs(p, "the feasibility network")
 }
 
 /// Runs the comparison.
@@ -144,7 +136,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .collect();
     let total = n;
     let n = chosen.len();
-    let bins = mission::binaries(!args.no_build)?;
+    let bins = crate::common::mission_binaries(!args.no_build)?;
     let (shard_dir, out_dir) = crate::common::output_folder(&args.out_dir, args.shard)?;
 
     // The calculation (what `grop eval` does for one method), task by task.

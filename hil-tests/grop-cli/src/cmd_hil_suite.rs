@@ -65,7 +65,7 @@ pub fn run(args: &Args, label: &str, dir: &Path) -> anyhow::Result<()> {
     );
     let scenes = suite::load_dir(dir)?;
     let model = crate::cmd_hil::model_path(&args.model)?;
-    let bins = mission::binaries(!args.no_build)?;
+    let bins = crate::common::mission_binaries(!args.no_build)?;
     std::fs::create_dir_all(&args.out_dir)
         .with_context(|| format!("creating {}", args.out_dir.display()))?;
     let started = Instant::now();
