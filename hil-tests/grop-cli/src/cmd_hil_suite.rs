@@ -87,6 +87,7 @@ pub fn run(args: &Args, label: &str, dir: &Path) -> anyhow::Result<()> {
         let t0 = Instant::now();
         let report = mission::start(&spec, &bins)
             .and_then(|m| m.finish(Duration::from_secs(900), &mut |_| {}))?;
+        crate::cmd_hil::save_picture(args, &spec, &report)?;
         Ok(row_of(&s.name, &report, t0.elapsed().as_secs_f64()))
     };
     std::thread::scope(|scope| {

@@ -525,10 +525,14 @@ fn hil_runs_a_folder_of_scene_files_one_mission_each_and_names_a_bad_folder() {
         out_dir.to_str().unwrap(),
         "--jobs",
         "1",
+        "--pictures",
     ]);
     let out = text(&o);
     assert!(o.status.success(), "{out}");
     assert!(out.contains("| scene | placed (end state)"), "{out}");
+    // --pictures: the mission drawn in its folder.
+    let img = image_header(&out_dir.join("scene-side/mission.png"));
+    assert_eq!(&img[..8], b"\x89PNG\r\n\x1a\n");
     let row = out
         .lines()
         .find(|l| l.starts_with("| side |"))
