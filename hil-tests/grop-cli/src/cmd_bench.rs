@@ -206,10 +206,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     // Every decision below reads only the candidate cells of Psi's heatmaps, so Psi computes
     // only those (`candidate_cells_only`); `grop-3/whole-heatmaps` runs the same decision with
     // whole heatmaps, as `grop-planner` computes them to publish them.
-    let mut fcn = FcnEvaluator::load(&args.model)
+    let mut fcn = FcnEvaluator::load(&crate::common::committed_file(&args.model))
         .with_context(|| format!("loading {}", args.model.display()))?
         .candidate_cells_only();
-    let mut fcn_whole = FcnEvaluator::load(&args.model)
+    let mut fcn_whole = FcnEvaluator::load(&crate::common::committed_file(&args.model))
         .with_context(|| format!("loading {}", args.model.display()))?;
     let scenes: Vec<world::Scene> = [15usize, 20, 25]
         .iter()

@@ -115,7 +115,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         None => world::RobotConfig::default(),
     };
     let capacity = robot.carry_capacity as usize;
-    let mut fcn = FcnEvaluator::load(&args.model)
+    let mut fcn = FcnEvaluator::load(&crate::common::committed_file(&args.model))
         .with_context(|| format!("loading {}", args.model.display()))?;
     let cfg = PlannerConfig::for_robot(&robot);
     let warmup = 3;

@@ -18,9 +18,9 @@ use planner::problem::TaskProblem;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use world::nav::OccupancyGrid;
-use world::view::{self, Heatmap, Rgb, RgbImage, RoomView};
+use world::view::{self, Heatmap, RgbImage, RoomView};
 
-use crate::common;
+use crate::{common, picture};
 
 /// Arguments of `grop demo`.
 #[derive(clap::Args, Debug)]
@@ -101,7 +101,7 @@ fn run_in_process(args: Args) -> anyhow::Result<()> {
     })?;
     let (scene, robot) = args.world.load()?;
     let targets: Vec<[f64; 3]> = scene.targets.iter().map(|t| t.as_array()).collect();
-    let mut psi = FcnEvaluator::load(&args.model)
+    let mut psi = FcnEvaluator::load(&crate::common::committed_file(&args.model))
         .with_context(|| format!("loading the feasibility network {}", args.model.display()))?;
 
     // The map: occupancy grid and its corner visibility graph, built once per map.
@@ -201,8 +201,9 @@ fn run_in_process(args: Args) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Room, every location's predicted heatmap, the driven route (start -> station -> goals in plan
-/// order) and each goal coloured by its outcome.
+/// Room, every location's predicted heatmap, the planned route (start -> station -> goals in
+/// plan order, as the trial simulator drives it), each goal ringed with its F and coloured by
+/// its outcome, the targets labelled, a metre scale and the legend.
 fn draw(
     args: &Args,
     scene: &world::Scene,
@@ -211,8 +212,9 @@ fn draw(
     planned: &planner::methods::PlannedTask,
     steps: &[(usize, Vec<StepOutcome>)],
 ) -> RgbImage {
-    let room = common::room_view(scene, args.pixels_per_m, true);
+    let room = RoomView::whole_room(scene, args.pixels_per_m);
     let mut img = view::render_room(scene, &room);
+    let s = f64::from(picture::text_scale(&img));
     for location in &problem.locations {
         let mut heatmap = Heatmap::zeros();
         for (cell, value) in location.cells.iter().zip(location.heat) {
@@ -227,42 +229,105 @@ fn draw(
             true,
         );
     }
-    let mut route = vec![problem.start_xy, problem.station_xy];
-    route.extend(planned.plan.unloads.iter().map(|u| planned.goal_of(u).xy));
-    for leg in route.windows(2) {
-        if let Some(path) = grid.plan(leg[0], leg[1]) {
-            for seg in path.points.windows(2) {
-                draw_segment(&mut img, &room, seg[0], seg[1], Rgb([40, 40, 200]));
-            }
+    let mut points = vec![problem.start_xy, problem.station_xy];
+    points.extend(planned.plan.unloads.iter().map(|u| planned.goal_of(u).xy));
+    let mut routed = vec![points[0]];
+    for leg in points.windows(2) {
+        match grid.plan(leg[0], leg[1]) {
+            Some(path) => routed.extend(path.points.iter().skip(1)),
+            None => routed.push(leg[1]),
         }
     }
-    for (step, (_, outcome)) in planned.plan.unloads.iter().zip(steps) {
+    picture::route(&mut img, &room, &routed, picture::PLANNED, 2.0 * s, true);
+    let mut labels = picture::Labels::default();
+    let table_y = 0.5 * (scene.banquet_table.y_min_m() + scene.banquet_table.y_max_m());
+    let mut stories = Vec::new();
+    for (step, (object, outcome)) in planned.plan.unloads.iter().zip(steps) {
         let goal = planned.goal_of(step);
-        // The first goal's colour: green when placed there, else red (a retry went elsewhere).
-        let colour = match outcome.first() {
-            Some(StepOutcome::Placed) => Rgb([0, 160, 0]),
-            _ => Rgb([210, 0, 0]),
+        // The first attempt's colour: placed there, or not (a retry went elsewhere).
+        let placed = outcome.first() == Some(&StepOutcome::Placed);
+        let colour = if placed {
+            picture::PLACED
+        } else {
+            picture::FAILED
         };
-        view::draw_marker(&mut img, &room, goal.xy.0, goal.xy.1, 0.12, colour);
+        picture::ring(&mut img, &room, goal.xy, 0.16, 1.5 * s, colour);
+        labels.keep_clear(&room, goal.xy, 0.2);
+        let f = planned
+            .locations
+            .iter()
+            .find(|l| l.object == step.object && l.side == step.side)
+            .map_or(f64::NAN, |l| l.feasibility);
+        labels.add(
+            &img,
+            &room,
+            goal.xy,
+            &format!("F {f:.2}"),
+            colour,
+            goal.xy.1 >= table_y,
+        );
+        let t = scene.targets[*object];
+        let word = if outcome.contains(&StepOutcome::Placed) {
+            "placed"
+        } else {
+            "failed"
+        };
+        let colour = if word == "placed" {
+            picture::PLACED
+        } else {
+            picture::FAILED
+        };
+        view::draw_marker(&mut img, &room, t.x_m, t.y_m, 0.1, colour);
+        labels.keep_clear(&room, (t.x_m, t.y_m), 0.12);
+        labels.add(
+            &img,
+            &room,
+            (t.x_m, t.y_m),
+            &format!("obj{object} {word}"),
+            colour,
+            t.y_m < table_y,
+        );
+        let tries: Vec<String> = outcome.iter().map(|o| format!("{o:?}")).collect();
+        let story = match outcome.as_slice() {
+            [StepOutcome::Placed] => "placed from the first goal".to_owned(),
+            _ => format!("{word} (tries: {})", tries.join(", then ")),
+        };
+        stories.push((
+            picture::Swatch::Disc(colour),
+            format!("obj{object}: {story}"),
+        ));
     }
-    for t in &scene.targets {
-        view::draw_marker(&mut img, &room, t.x_m, t.y_m, 0.06, Rgb([30, 60, 230]));
-    }
-    img
-}
-
-pub(crate) fn draw_segment(
-    img: &mut RgbImage,
-    room: &RoomView,
-    a: (f64, f64),
-    b: (f64, f64),
-    c: Rgb<u8>,
-) {
-    let length = (b.0 - a.0).hypot(b.1 - a.1);
-    let n = (length / 0.02).ceil().max(1.0) as usize;
-    for k in 0..=n {
-        let t = k as f64 / n as f64;
-        let (x, y) = (a.0 + t * (b.0 - a.0), a.1 + t * (b.1 - a.1));
-        view::draw_marker(img, room, x, y, 0.02, c);
-    }
+    labels.draw(&mut img);
+    picture::scale_bar(&mut img, &room);
+    let mut legend = picture::Legend {
+        title: vec![
+            format!("grop demo --in-process: scene {}", scene.name),
+            format!("method {}, seed {}", planned.method.name(), args.world.seed),
+            format!(
+                "placed {} of {} (trial simulator)",
+                steps
+                    .iter()
+                    .filter(|(_, o)| o.contains(&StepOutcome::Placed))
+                    .count(),
+                scene.targets.len()
+            ),
+        ],
+        entries: Vec::new(),
+    };
+    legend
+        .entry(picture::Swatch::Heat, "Psi's F of a standing cell, 0 to 1")
+        .entry(picture::Swatch::Dashed(picture::PLANNED), "planned route")
+        .entry(
+            picture::Swatch::Ring(picture::PLACED),
+            "standing spot with its F: placed from it",
+        )
+        .entry(
+            picture::Swatch::Ring(picture::FAILED),
+            "standing spot with its F: failed there",
+        )
+        .entry(picture::Swatch::Disc(picture::PLACED), "target: placed")
+        .entry(picture::Swatch::Disc(picture::FAILED), "target: failed")
+        .room();
+    legend.entries.extend(stories);
+    picture::with_legend(&img, &legend)
 }

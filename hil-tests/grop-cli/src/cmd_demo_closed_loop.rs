@@ -11,9 +11,9 @@ use hil_world::mission::{self, MissionSpec};
 use hil_world::objects::ObjectState;
 use hil_world::report::{MissionEnd, WorldReport};
 use indicatif::{ProgressBar, ProgressStyle};
-use world::view::{self, Rgb};
+use world::view;
 
-use crate::cmd_demo::{Args, draw_segment};
+use crate::cmd_demo::Args;
 use crate::common;
 
 fn parse_camera(s: &str) -> anyhow::Result<(u32, u32)> {
@@ -41,17 +41,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         "--retry {:?}: use grop-plus, none or replan",
         args.retry
     );
-    let model = std::fs::canonicalize(&args.model).or_else(|_| {
-        // From any working directory: the committed model in the workspace.
-        std::fs::canonicalize(
-            std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-                .join("../..")
-                .join(&args.model),
-        )
-    });
-    let model =
-        model.with_context(|| format!("the feasibility network {}", args.model.display()))?;
-    let bins = mission::binaries(!args.no_build)?;
+    // From any working directory: the committed model in the checkout.
+    let model = common::committed_file_abs(&args.model, "the feasibility network")?;
+    let bins = crate::common::mission_binaries(!args.no_build)?;
     let spec = MissionSpec {
         dir: args.run_dir.clone(),
         scene: scene.clone(),
@@ -97,7 +89,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let report = running.finish(Duration::from_secs(900), &mut echo)?;
     bar.finish_and_clear();
     print_report(&report, started.elapsed(), spec.log.as_deref());
-    let picture = draw(&args, &scene, &report);
+    for line in crate::mission_end::explain(&report, &args.run_dir) {
+        println!("{line}");
+    }
+    let picture = draw(&args, &scene, &robot, &report);
     if let Some(dir) = args.out.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     }
@@ -226,50 +221,25 @@ fn print_report(report: &WorldReport, wall: Duration, spec_log: Option<&std::pat
     }
 }
 
-fn draw(args: &Args, scene: &world::Scene, report: &WorldReport) -> view::RgbImage {
-    let room = common::room_view(scene, args.pixels_per_m, true);
-    let mut img = view::render_room(scene, &room);
-    for w in report.trajectory.windows(2) {
-        draw_segment(
-            &mut img,
-            &room,
-            (w[0][1], w[0][2]),
-            (w[1][1], w[1][2]),
-            Rgb([40, 40, 200]),
-        );
+fn draw(
+    args: &Args,
+    scene: &world::Scene,
+    robot: &world::RobotConfig,
+    report: &WorldReport,
+) -> view::RgbImage {
+    let mut title = vec![
+        format!("grop demo: scene {}", scene.name),
+        format!("method {}, seed {}", args.method, args.world.seed),
+        format!(
+            "mission {:?}: placed {} of {}",
+            report.end,
+            report.placed_end_state,
+            report.objects.len()
+        ),
+        format!("({} without any contact)", report.placed),
+    ];
+    if let Some(f) = &report.fault {
+        title.push(format!("fault: {}", f.spec));
     }
-    for leg in &report.legs {
-        view::draw_marker(
-            &mut img,
-            &room,
-            leg.commanded[0],
-            leg.commanded[1],
-            0.05,
-            Rgb([120, 120, 120]),
-        );
-    }
-    for o in &report.objects {
-        let colour = match o.state {
-            ObjectState::Released { verdict, .. } if verdict.placed_strictly() => Rgb([0, 160, 0]),
-            ObjectState::Released { verdict, .. } if verdict.placed_end_state() => {
-                Rgb([150, 200, 0])
-            }
-            _ => Rgb([210, 0, 0]),
-        };
-        view::draw_marker(&mut img, &room, o.target[0], o.target[1], 0.09, colour);
-        if let ObjectState::Released { at, .. } = o.state {
-            view::draw_marker(&mut img, &room, at[0], at[1], 0.04, Rgb([250, 200, 0]));
-        }
-    }
-    for c in &report.collisions {
-        view::draw_marker(
-            &mut img,
-            &room,
-            c.base[0],
-            c.base[1],
-            0.07,
-            Rgb([255, 0, 255]),
-        );
-    }
-    img
+    crate::picture::mission(scene, robot, report, args.pixels_per_m, title)
 }

@@ -265,7 +265,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             experiments::evaluate_heatmaps(&workload, &mut BlurredAnnulusEvaluator::new())?
         }
         Evaluator::Fcn => {
-            let mut fcn = FcnEvaluator::load(&args.model)
+            let mut fcn = FcnEvaluator::load(&crate::common::committed_file(&args.model))
                 .with_context(|| format!("loading FCN model {}", args.model.display()))?;
             experiments::evaluate_heatmaps(&workload, &mut fcn)?
         }
@@ -348,7 +348,7 @@ fn shard_config(args: &Args, robot: &world::RobotConfig) -> anyhow::Result<serde
         "options": opts,
         "robot_toml": toml::to_string(robot).context("recording the robot")?,
         "model_sha256": if args.evaluator == Evaluator::Fcn {
-            trial_sim::shard::file_sha256(&args.model)
+            trial_sim::shard::file_sha256(&crate::common::committed_file(&args.model))
         } else {
             String::new()
         },

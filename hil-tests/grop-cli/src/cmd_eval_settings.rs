@@ -45,7 +45,7 @@ pub fn run(
     };
     let mut psi: Box<dyn FeasibilityEvaluator> = match args.evaluator {
         Evaluator::Fcn => Box::new(
-            FcnEvaluator::load(&args.model)
+            FcnEvaluator::load(&crate::common::committed_file(&args.model))
                 .with_context(|| format!("loading {}", args.model.display()))?,
         ),
         Evaluator::Oracle => Box::new(OracleEvaluator::new(

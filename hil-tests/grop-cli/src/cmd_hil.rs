@@ -78,6 +78,37 @@ pub struct Args {
     #[arg(long, value_name = "DIR")]
     #[serde(default)]
     pub scenes: Option<PathBuf>,
+    /// Draw each mission as `mission.png` in its folder (routes, standing spots with their F,
+    /// outcomes, scale and legend, as `grop demo` draws out/demo.png).
+    #[arg(long)]
+    #[serde(default)]
+    pub pictures: bool,
+}
+
+/// `mission.png` in the mission's folder, when `--pictures` asks for it.
+pub(crate) fn save_picture(
+    args: &Args,
+    spec: &MissionSpec,
+    report: &WorldReport,
+) -> anyhow::Result<()> {
+    if !args.pictures {
+        return Ok(());
+    }
+    let title = vec![
+        format!("grop hil: {}", spec.scene.name),
+        format!("method {}, seed {}", spec.method, spec.seed),
+        format!(
+            "mission {:?}: placed {} of {}",
+            report.end,
+            report.placed_end_state,
+            report.objects.len()
+        ),
+        format!("({} without any contact)", report.placed),
+    ];
+    let path = spec.dir.join("mission.png");
+    crate::picture::mission(&spec.scene, &spec.robot, report, 48.0, title)
+        .save(&path)
+        .with_context(|| format!("writing {}", path.display()))
 }
 
 /// One task's results.
@@ -100,15 +131,7 @@ struct Row {
 }
 
 pub(crate) fn model_path(p: &std::path::Path) -> anyhow::Result<PathBuf> {
-    std::fs::canonicalize(p)
-        .or_else(|_| {
-            std::fs::canonicalize(
-                std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-                    .join("../..")
-                    .join(p),
-            )
-        })
-        .with_context(|| format!("the feasibility network {}", p.display()))
+    crate::common::committed_file_abs(p, "the feasibility network")
 }
 
 /// Runs the comparison.
@@ -144,7 +167,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .collect();
     let total = n;
     let n = chosen.len();
-    let bins = mission::binaries(!args.no_build)?;
+    let bins = crate::common::mission_binaries(!args.no_build)?;
     let (shard_dir, out_dir) = crate::common::output_folder(&args.out_dir, args.shard)?;
 
     // The calculation (what `grop eval` does for one method), task by task.
@@ -220,7 +243,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 };
                 let t0 = Instant::now();
                 let result = mission::start(&spec, &bins)
-                    .and_then(|m| m.finish(Duration::from_secs(600), &mut |_| {}));
+                    .and_then(|m| m.finish(Duration::from_secs(600), &mut |_| {}))
+                    .and_then(|report| save_picture(&args, &spec, &report).map(|()| report));
                 match result {
                     Ok(report) => {
                         let row = row_of(task.id, task.scene, task.n_chairs, &calc[k], &report, t0);
@@ -421,6 +445,7 @@ pub fn merge(set: &[(PathBuf, ShardManifest)], out: &std::path::Path) -> anyhow:
         no_lidar: c["no_lidar"].as_bool().unwrap_or(false),
         suite: None,
         scenes: None,
+        pictures: false,
     };
     let staged = trial_sim::shard::MergeDir::create(out)?;
     let mut rows = Vec::new();

@@ -65,7 +65,7 @@ pub fn run(args: &Args, label: &str, dir: &Path) -> anyhow::Result<()> {
     );
     let scenes = suite::load_dir(dir)?;
     let model = crate::cmd_hil::model_path(&args.model)?;
-    let bins = mission::binaries(!args.no_build)?;
+    let bins = crate::common::mission_binaries(!args.no_build)?;
     std::fs::create_dir_all(&args.out_dir)
         .with_context(|| format!("creating {}", args.out_dir.display()))?;
     let started = Instant::now();
@@ -87,6 +87,7 @@ pub fn run(args: &Args, label: &str, dir: &Path) -> anyhow::Result<()> {
         let t0 = Instant::now();
         let report = mission::start(&spec, &bins)
             .and_then(|m| m.finish(Duration::from_secs(900), &mut |_| {}))?;
+        crate::cmd_hil::save_picture(args, &spec, &report)?;
         Ok(row_of(&s.name, &report, t0.elapsed().as_secs_f64()))
     };
     std::thread::scope(|scope| {

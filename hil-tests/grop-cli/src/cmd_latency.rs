@@ -52,7 +52,8 @@ fn reproduce(args: &Args) -> String {
 
 /// Runs `grop latency`.
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let peer = latency::peer::locate(!args.no_build).context("finding grop-latency-peer")?;
+    let peer = latency::peer::locate_built_with(!args.no_build, &[env!("CARGO_PKG_NAME")])
+        .context("finding grop-latency-peer")?;
     let config = if args.quick {
         SuiteConfig::quick(args.rt)
     } else {
@@ -61,7 +62,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let results = latency::suite::run(&peer, &config, |step| eprintln!("latency: {step}"))
         .context("running the latency suite")?;
     eprintln!("latency: camera frame to plan (planner node on the wall clock)");
-    let model = crate::common::workspace_path("models/psi-fcn.onnx");
+    let model = crate::common::committed_file(std::path::Path::new("models/psi-fcn.onnx"));
     let samples = if args.quick {
         5
     } else {

@@ -62,9 +62,7 @@ pub fn manifest(
         seed,
         version: env!("CARGO_PKG_VERSION").into(),
         // The checkout the program was built from.
-        commit: trial_sim::shard::source_commit(
-            &std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../.."),
-        ),
+        commit: trial_sim::shard::source_commit(&crate::common::checkout()),
         binary_sha256: exe
             .as_deref()
             .map(trial_sim::shard::file_sha256)

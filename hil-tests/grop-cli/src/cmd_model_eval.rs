@@ -82,7 +82,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     for name in &args.evaluators {
         let mut evaluator: Box<dyn FeasibilityEvaluator> = match name.as_str() {
             "fcn" => Box::new(
-                FcnEvaluator::load(&args.model)
+                FcnEvaluator::load(&crate::common::committed_file(&args.model))
                     .with_context(|| format!("loading {}", args.model.display()))?,
             ),
             "binary" => Box::new(BinaryAnnulusEvaluator::new()),
@@ -131,7 +131,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 }
 
 fn check_card(card: &std::path::Path, reports: &[QualityReport]) -> anyhow::Result<()> {
-    let text = std::fs::read_to_string(card)
+    let text = std::fs::read_to_string(crate::common::committed_file(card))
         .with_context(|| format!("reading model card {}", card.display()))?;
     let bounds = psi_eval::thresholds::parse_model_card(&text)
         .with_context(|| format!("in {}", card.display()))?;

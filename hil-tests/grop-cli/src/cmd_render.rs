@@ -97,17 +97,52 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             only_candidates,
         );
     }
-    // Targets drawn again on top of the heatmaps.
-    for target in &scene.targets {
+    // Targets drawn again on top of the heatmaps, each labelled with its sides' F.
+    let mut labels = crate::picture::Labels::default();
+    for (i, target) in scene.targets.iter().enumerate() {
         view::draw_marker(
             &mut picture,
             &room_view,
             target.x_m,
             target.y_m,
             0.06,
-            view::Rgb([30, 60, 230]),
+            view::ROOM_TARGET,
+        );
+        labels.keep_clear(&room_view, (target.x_m, target.y_m), 0.1);
+        let f: Vec<String> = pairs
+            .iter()
+            .zip(&heatmaps)
+            .filter(|((t, _), _)| t[0] == target.x_m && t[1] == target.y_m)
+            .map(|((_, side), h)| format!("{} {:.2}", side.name(), task_feasibility(h, area)))
+            .collect();
+        labels.add(
+            &picture,
+            &room_view,
+            (target.x_m, target.y_m),
+            &format!("obj{i} F {}", f.join(" / ")),
+            crate::picture::INK,
+            i % 2 == 0,
         );
     }
+    labels.draw(&mut picture);
+    crate::picture::scale_bar(&mut picture, &room_view);
+    let mut legend = crate::picture::Legend {
+        title: vec![
+            format!("grop render: scene {}", scene.name),
+            format!(
+                "simulated, {} trials per cell, seed {}",
+                args.trials_per_cell, args.world.seed
+            ),
+        ],
+        entries: Vec::new(),
+    };
+    legend
+        .entry(
+            crate::picture::Swatch::Heat,
+            "simulated F of a standing cell, 0 to 1",
+        )
+        .furniture();
+    let picture = crate::picture::with_legend(&picture, &legend);
     if let Some(dir) = args.out.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     }

@@ -28,7 +28,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let report = replay(
         &args.path,
         &ReplayOptions {
-            model: args.model.clone(),
+            // A committed model named relative to the checkout works from any folder.
+            model: args.model.as_deref().map(crate::common::committed_file),
             out: args.out.clone(),
         },
     )

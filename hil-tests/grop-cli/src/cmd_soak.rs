@@ -165,10 +165,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             .map(|s| format!(" in shard {s} of --missions {}", args.missions))
             .unwrap_or_default()
     );
-    let model = crate::common::workspace_path(&args.model.to_string_lossy());
-    let model = std::fs::canonicalize(&model)
-        .with_context(|| format!("the feasibility network {}", args.model.display()))?;
-    let bins = mission::binaries(!args.no_build)?;
+    let model = crate::common::committed_file_abs(&args.model, "the feasibility network")?;
+    let bins = crate::common::mission_binaries(!args.no_build)?;
     let (shard_dir, out_dir) = crate::common::output_folder(&args.out_dir, args.shard)?;
     let machine = latency::machine::MachineInfo::now();
     let started = Instant::now();
@@ -329,7 +327,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     println!("written: {}", out.display());
     if args.write_docs {
-        let docs = crate::common::workspace_path("docs").join("soak.md");
+        let docs = crate::common::committed_file(std::path::Path::new("docs")).join("soak.md");
         std::fs::write(&docs, &summary).with_context(|| format!("writing {}", docs.display()))?;
         println!("written: {}", docs.display());
     }

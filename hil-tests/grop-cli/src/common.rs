@@ -41,14 +41,17 @@ pub struct SceneArgs {
 impl SceneArgs {
     /// The scene and the robot these options name.
     pub fn load(&self) -> anyhow::Result<(Scene, RobotConfig)> {
+        // Committed scene and robot files are found from any working directory too.
+        let scene_file = self.scene.as_deref().map(committed_file);
+        let robot_file = self.robot.as_deref().map(committed_file);
         let scene = scene_from(
-            self.scene.as_deref(),
+            scene_file.as_deref(),
             self.kind,
             self.seed,
             self.chairs,
             self.targets,
         )?;
-        Ok((scene, robot_from(self.robot.as_deref())?))
+        Ok((scene, robot_from(robot_file.as_deref())?))
     }
 }
 
@@ -98,16 +101,41 @@ pub fn room_view(scene: &Scene, pixels_per_m: f64, whole_room: bool) -> RoomView
     )
 }
 
-/// `rel` under the current directory if it is there, else under the workspace this binary was
-/// built from (so commands run from any working directory).
-pub fn workspace_path(rel: &str) -> std::path::PathBuf {
-    let here = std::path::PathBuf::from(rel);
-    if here.exists() {
-        return here;
+/// The world and the onboard binaries a mission starts, built first (unless `build` is false)
+/// in the same cargo build as this program's package, so that they share its features and a
+/// workspace build (or `cargo run -p grop-cli`) leaves nothing to compile again.
+pub fn mission_binaries(build: bool) -> anyhow::Result<hil_world::mission::Binaries> {
+    hil_world::mission::binaries_built_with(build, &[env!("CARGO_PKG_NAME")])
+}
+
+/// The checkout this program was built from.
+pub fn checkout() -> PathBuf {
+    // hil-tests/grop-cli -> the workspace.
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
+}
+
+/// A committed file or folder (the model, a model card, docs/) as the command line names it:
+/// `path` itself when it exists from the working directory (or is absolute), else the same
+/// relative path in the checkout this program was built from, so that every command works from
+/// any working directory. Unchanged when neither exists, so that errors name what was given.
+pub fn committed_file(path: &Path) -> PathBuf {
+    if path.is_absolute() || path.exists() {
+        return path.to_path_buf();
     }
-    std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../..")
-        .join(rel)
+    let in_checkout = checkout().join(path);
+    if in_checkout.exists() {
+        in_checkout
+    } else {
+        path.to_path_buf()
+    }
+}
+
+/// [`committed_file`] as an absolute path (for the processes a mission starts, which run in
+/// other folders); `what` names the file in the error when it is not there.
+pub fn committed_file_abs(path: &Path, what: &str) -> anyhow::Result<PathBuf> {
+    use anyhow::Context;
+    std::fs::canonicalize(committed_file(path))
+        .with_context(|| format!("{what} {} does not exist", path.display()))
 }
 
 /// The folder a run writes to: `out_dir` itself, or with `--shard` the shard's own folder in it

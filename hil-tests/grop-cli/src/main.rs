@@ -23,6 +23,8 @@ mod cmd_render;
 mod cmd_replay;
 mod cmd_soak;
 mod common;
+mod mission_end;
+mod picture;
 
 /// GROP: visually grounded task-and-motion planning for a mobile manipulator setting dinner tables.
 #[derive(Parser, Debug)]

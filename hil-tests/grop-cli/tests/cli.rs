@@ -57,6 +57,8 @@ fn demo_runs_the_closed_loop_and_reports_decision_steps_and_latency() {
     ] {
         assert!(out.contains(expected), "no {expected:?} in:\n{out}");
     }
+    // A mission that finished with no fault has nothing to explain.
+    assert!(!out.contains("why the mission ended"), "{out}");
     assert!(
         std::fs::metadata(&log).is_ok_and(|m| m.len() > 0),
         "no log at {log:?}"
@@ -71,6 +73,39 @@ fn demo_runs_the_closed_loop_and_reports_decision_steps_and_latency() {
         "executive.log",
     ] {
         assert!(run.join(f).is_file(), "{f} missing");
+    }
+}
+
+#[test]
+fn demo_says_why_a_faulted_mission_ended_and_what_to_do_next() {
+    let dir = tempfile::tempdir().unwrap();
+    let png = dir.path().join("demo.png");
+    let run = dir.path().join("run");
+    let o = grop(&[
+        "demo",
+        "--model",
+        &model(),
+        "--fault",
+        "kill-switch",
+        "--no-record",
+        "--out",
+        png.to_str().unwrap(),
+        "--run-dir",
+        run.to_str().unwrap(),
+    ]);
+    let out = text(&o);
+    assert!(o.status.success(), "{out}");
+    for expected in [
+        "mission Aborted",
+        "why the mission ended (aborted):",
+        "fault injected: kill-switch@driving at ",
+        "noticed by the RMP driver",
+        "MissionAborted: BaseFault",
+        "reaction: first zero base command at ",
+        "base stood still at ",
+        "next: release the base's kill switch",
+    ] {
+        assert!(out.contains(expected), "no {expected:?} in:\n{out}");
     }
 }
 
@@ -301,8 +336,9 @@ fn grop_in(cwd: &std::path::Path, args: &[&str]) -> Output {
 #[test]
 fn bench_writes_under_out_and_regenerates_the_doc_only_with_write_docs() {
     let dir = tempfile::tempdir().unwrap();
-    let model = model();
-    let bench = ["bench", "--model", &model, "--iterations", "10"];
+    // No --model: the committed model is found from a folder outside the checkout, as the
+    // closed-loop demo finds it.
+    let bench = ["bench", "--iterations", "10"];
     let o = grop_in(dir.path(), &bench);
     assert!(o.status.success(), "{}", text(&o));
     assert!(dir.path().join("out/planner-bench.md").is_file());
@@ -489,10 +525,14 @@ fn hil_runs_a_folder_of_scene_files_one_mission_each_and_names_a_bad_folder() {
         out_dir.to_str().unwrap(),
         "--jobs",
         "1",
+        "--pictures",
     ]);
     let out = text(&o);
     assert!(o.status.success(), "{out}");
     assert!(out.contains("| scene | placed (end state)"), "{out}");
+    // --pictures: the mission drawn in its folder.
+    let img = image_header(&out_dir.join("scene-side/mission.png"));
+    assert_eq!(&img[..8], b"\x89PNG\r\n\x1a\n");
     let row = out
         .lines()
         .find(|l| l.starts_with("| side |"))

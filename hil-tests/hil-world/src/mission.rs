@@ -55,6 +55,16 @@ fn find_in(dir: &Path) -> Option<Binaries> {
 /// profile (quick when nothing changed), so a fresh clone's `cargo run -p grop-cli -- demo`
 /// builds everything it starts, from any working directory.
 pub fn binaries(build: bool) -> anyhow::Result<Binaries> {
+    binaries_built_with(build, &[])
+}
+
+/// [`binaries`], built in one `cargo build` together with `packages` (the running program's
+/// own package). Cargo turns on a shared dependency's features for all the packages of one
+/// build together: the world and the onboard binaries built alone get other features of
+/// `memchr`, `once_cell`, `digest`, `num-bigint` than `cargo build -p grop-cli` or
+/// `--workspace` gave them, and about 40 crates compile again. Built with the program's package
+/// they get the same features, so the program's own build already built them.
+pub fn binaries_built_with(build: bool, packages: &[&str]) -> anyhow::Result<Binaries> {
     let exe = std::env::current_exe().context("locating the running program")?;
     let dir = exe
         .parent()
@@ -70,7 +80,11 @@ pub fn binaries(build: bool) -> anyhow::Result<Binaries> {
             cmd.arg("build")
                 .arg("--manifest-path")
                 .arg(&manifest)
-                .args(["-p", "hil-world", "-p", "grop-onboard", "--bins"]);
+                .args(["-p", "hil-world", "-p", "grop-onboard"]);
+            for p in packages {
+                cmd.args(["-p", p]);
+            }
+            cmd.arg("--bins");
             if release {
                 cmd.arg("--release");
             }

@@ -24,6 +24,13 @@ pub const READY_TIMEOUT: Duration = Duration::from_secs(20);
 /// grop-latency-peer` (with `--release` when the running program is a release build) in this
 /// workspace, if its sources are there.
 pub fn locate(build: bool) -> Result<PathBuf, BenchError> {
+    locate_built_with(build, &[])
+}
+
+/// [`locate`], building the peer in one `cargo build` together with `packages` (the running
+/// program's own package), so that shared dependencies get the features the program's own
+/// build gave them and are not compiled again (cargo unifies features per build).
+pub fn locate_built_with(build: bool, packages: &[&str]) -> Result<PathBuf, BenchError> {
     let exe = std::env::current_exe().map_err(BenchError::io("locating the running program"))?;
     let dir = exe
         .parent()
@@ -38,7 +45,11 @@ pub fn locate(build: bool) -> Result<PathBuf, BenchError> {
             cmd.arg("build")
                 .arg("--manifest-path")
                 .arg(&manifest)
-                .args(["-p", "latency", "--bin", PEER_BIN]);
+                .args(["-p", "latency"]);
+            for p in packages {
+                cmd.args(["-p", p]);
+            }
+            cmd.args(["--bin", PEER_BIN]);
             if release {
                 cmd.arg("--release");
             }

@@ -471,14 +471,18 @@ impl RoomView {
     }
 }
 
-/// Colours of the room picture.
+// Colours of the room picture (the public ones are for legends).
 const ROOM_FLOOR: Rgb<u8> = Rgb([222, 216, 204]);
 const ROOM_WALL: Rgb<u8> = Rgb([60, 60, 60]);
-const ROOM_TABLE: Rgb<u8> = Rgb([150, 110, 70]);
+/// Tables in [`render_room`].
+pub const ROOM_TABLE: Rgb<u8> = Rgb([150, 110, 70]);
 const ROOM_TABLE_SEAM: Rgb<u8> = Rgb([110, 80, 50]);
-const ROOM_CHAIR: Rgb<u8> = Rgb([70, 90, 140]);
-const ROOM_TARGET: Rgb<u8> = Rgb([30, 60, 230]);
-const ROOM_START: Rgb<u8> = Rgb([200, 40, 40]);
+/// Chairs in [`render_room`].
+pub const ROOM_CHAIR: Rgb<u8> = Rgb([70, 90, 140]);
+/// Target crosses in [`render_room`].
+pub const ROOM_TARGET: Rgb<u8> = Rgb([30, 60, 230]);
+/// The robot's start in [`render_room`].
+pub const ROOM_START: Rgb<u8> = Rgb([200, 40, 40]);
 
 /// A colour picture of the room seen from above (floor, walls, tables, chairs, targets as blue
 /// crosses, the robot start as a red dot). Deterministic.
