@@ -82,39 +82,21 @@ impl UnloadLocation {
     }
 
     /// Marks each cell free or not by checking the base footprint, facing the table, against the
-    /// scene: at the cell and straight back from it for [`WAY_IN_M`] (a differential base
-    /// reaches a spot at a table by driving in at the spot's heading; a spot it could only
-    /// slide into sideways, or turn into next to a chair, is no standing spot).
+    /// scene.
     pub fn mark_free_cells(&mut self, scene: &Scene, robot: &RobotConfig) {
         let yaw_rad = self.side.facing_yaw_rad();
-        let (s, c) = yaw_rad.sin_cos();
         let (mut x0, mut x1, mut y0, mut y1) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
-        for cell in &self.cells {
-            for (x, y) in [
-                cell.xy,
-                (cell.xy.0 - c * WAY_IN_M, cell.xy.1 - s * WAY_IN_M),
-            ] {
-                (x0, x1) = (x0.min(x), x1.max(x));
-                (y0, y1) = (y0.min(y), y1.max(y));
-            }
+        for c in &self.cells {
+            (x0, x1) = (x0.min(c.xy.0), x1.max(c.xy.0));
+            (y0, y1) = (y0.min(c.xy.1), y1.max(c.xy.1));
         }
         // Obstacle footprints once per location, then only overlap tests per cell: the same
-        // answer as `base_collides` on the whole scene for every pose.
+        // answer as `base_collides` on the whole scene for every cell.
         let checker = BaseCollisionChecker::new(scene, robot, yaw_rad, (x0, x1, y0, y1));
-        for cell in self.cells.iter_mut() {
-            cell.free =
-                way_in_offsets().all(|d| !checker.collides(cell.xy.0 - c * d, cell.xy.1 - s * d));
+        for c in self.cells.iter_mut() {
+            c.free = !checker.collides(c.xy.0, c.xy.1);
         }
     }
-}
-
-/// How far straight back from a standing spot, at the spot's heading, the base must fit (m):
-/// the executive's shortest docking stretch.
-pub const WAY_IN_M: f64 = 0.15;
-
-/// The distances back from a spot checked for [`WAY_IN_M`], every 5 cm from the spot.
-pub fn way_in_offsets() -> impl Iterator<Item = f64> {
-    (0..=3).map(|k| f64::from(k) * WAY_IN_M / 3.0)
 }
 
 /// The candidate cells (row, col) in the order used by [`UnloadLocation`].
@@ -339,24 +321,20 @@ mod tests {
         assert!(l.cells.iter().all(|c| c.xy.1 > 6.5 && c.xy.1 < 7.1));
     }
 
-    /// Free cells the slow way: the base footprint at every cell and straight back from it
-    /// against the whole scene.
+    /// Free cells as first computed: the base footprint at every cell against the whole scene.
     fn reference_free(l: &UnloadLocation, scene: &Scene, robot: &RobotConfig) -> Vec<bool> {
-        let yaw_rad = l.side.facing_yaw_rad();
         l.cells
             .iter()
             .map(|c| {
-                way_in_offsets().all(|d| {
-                    !world::base_collides(
-                        scene,
-                        robot,
-                        world::BasePose {
-                            x_m: c.xy.0 - yaw_rad.cos() * d,
-                            y_m: c.xy.1 - yaw_rad.sin() * d,
-                            yaw_rad,
-                        },
-                    )
-                })
+                !world::base_collides(
+                    scene,
+                    robot,
+                    world::BasePose {
+                        x_m: c.xy.0,
+                        y_m: c.xy.1,
+                        yaw_rad: l.side.facing_yaw_rad(),
+                    },
+                )
             })
             .collect()
     }
