@@ -227,17 +227,13 @@ fn draw(
     robot: &world::RobotConfig,
     report: &WorldReport,
 ) -> view::RgbImage {
-    let mut title = vec![
-        format!("grop demo: scene {}", scene.name),
-        format!("method {}, seed {}", args.method, args.world.seed),
-        format!(
-            "mission {:?}: placed {} of {}",
-            report.end,
-            report.placed_end_state,
-            report.objects.len()
-        ),
-        format!("({} without any contact)", report.placed),
-    ];
+    let mut title = crate::picture::mission_title(
+        "demo",
+        &format!("scene {}", scene.name),
+        &args.method.to_string(),
+        args.world.seed,
+        report,
+    );
     if let Some(f) = &report.fault {
         title.push(format!("fault: {}", f.spec));
     }

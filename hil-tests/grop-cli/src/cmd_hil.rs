@@ -94,17 +94,13 @@ pub(crate) fn save_picture(
     if !args.pictures {
         return Ok(());
     }
-    let title = vec![
-        format!("grop hil: {}", spec.scene.name),
-        format!("method {}, seed {}", spec.method, spec.seed),
-        format!(
-            "mission {:?}: placed {} of {}",
-            report.end,
-            report.placed_end_state,
-            report.objects.len()
-        ),
-        format!("({} without any contact)", report.placed),
-    ];
+    let title = crate::picture::mission_title(
+        "hil",
+        &spec.scene.name,
+        &spec.method.to_string(),
+        spec.seed,
+        report,
+    );
     let path = spec.dir.join("mission.png");
     crate::picture::mission(&spec.scene, &spec.robot, report, 48.0, title)
         .save(&path)

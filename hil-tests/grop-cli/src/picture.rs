@@ -498,6 +498,28 @@ pub fn outcome(state: &ObjectState) -> (Rgb<u8>, &'static str, String) {
     }
 }
 
+/// The legend's heading for a closed-loop mission: the job and scene, the method and seed,
+/// how the mission ended and what it placed.
+pub fn mission_title(
+    job: &str,
+    scene: &str,
+    method: &str,
+    seed: u64,
+    report: &WorldReport,
+) -> Vec<String> {
+    vec![
+        format!("grop {job}: {scene}"),
+        format!("method {method}, seed {seed}"),
+        format!(
+            "mission {:?}: placed {} of {}",
+            report.end,
+            report.placed_end_state,
+            report.objects.len()
+        ),
+        format!("({} without any contact)", report.placed),
+    ]
+}
+
 /// A closed-loop mission as the world saw it: the first plan's route (dashed) and the later
 /// plans' from where the base was, the route driven, the standing spots with their F, where
 /// the base stopped, every target labelled with its outcome, where objects were released,
