@@ -23,6 +23,9 @@ const STOPJ_ACCELERATION: f64 = 4.0;
 const JOINT_IGNORE_SPEED: f64 = 20.0;
 /// Seconds the trajectory thread waits for a point before it fails.
 const POINT_TIMEOUT_S: f64 = 0.5;
+
+/// Trajectory points kept that arrived before their start message.
+const EARLY_POINTS_MAX: usize = 64;
 /// The program's `steptime` on an e-Series controller (s).
 const STEPTIME_S: f64 = 0.002;
 
@@ -189,6 +192,7 @@ impl RobotModel {
                 trajectory_action::RECEIVE => {
                     let now = self.time_s;
                     if let Some(e) = self.ext(session) {
+                        e.queue.truncate(n.max(0) as usize);
                         e.points_left = n.max(0);
                         e.trajectory_running = n > 0;
                         e.waiting_motion = false;
@@ -217,7 +221,15 @@ impl RobotModel {
     ) {
         if let Some(e) = self.ext(session) {
             // Points beyond the announced count are drained, as the script's cleanup does.
-            if e.trajectory_running && e.queue.len() < e.points_left.max(0) as usize {
+            // Points read before the start message (the two arrive on different sockets, and
+            // a loaded host may deliver them in either order) wait, as a real controller's
+            // socket buffer keeps them until the script reads; the start keeps its count.
+            let room = if e.trajectory_running {
+                e.points_left.max(0) as usize
+            } else {
+                EARLY_POINTS_MAX
+            };
+            if e.queue.len() < room {
                 e.queue.push_back(*point);
             }
         }
