@@ -4,7 +4,7 @@
 # a private one-node cluster on loopback (munged, slurmctld, slurmd, each with its own socket,
 # ports, state and logs in a temporary folder), submits 4 shards of `grop hil --tasks 8` as one
 # job array (hil-tests/campaigns/slurm/grop-shard.sbatch, binaries built once before it, the
-# shards run with --no-build), merges them with `grop merge`, runs the same 8 tasks unsharded,
+# shards run with --no-build; blind, --no-lidar: the sharding is what it checks), merges them with `grop merge`, runs the same 8 tasks unsharded,
 # and compares: the per-task simulated results (tasks.csv without its wall-time column) must be
 # identical. Stops every daemon it started and removes every file it made, also on failure.
 #
@@ -135,7 +135,7 @@ stamp "submitting 4 shards of grop hil --tasks 8 as one array"
 t0=$(date +%s.%N)
 jid=$(sbatch --parsable --array=0-3 --cpus-per-task=1 --mem=900M --time=00:10:00 \
     --output="$work/campaign-logs/shard-%A_%a.out" \
-    --export=ALL,GROP_JOB=hil,GROP_ARGS="--tasks 8 --jobs 1",CAMPAIGN_DIR="$work/campaign",GROP_BIN="$bin",GROP_WORKDIR="$root" \
+    --export=ALL,GROP_JOB=hil,GROP_ARGS="--tasks 8 --jobs 1 --no-lidar",CAMPAIGN_DIR="$work/campaign",GROP_BIN="$bin",GROP_WORKDIR="$root" \
     hil-tests/campaigns/slurm/grop-shard.sbatch)
 # Until no task of the array is left (sbatch --wait polls at growing intervals, up to 32 s).
 for _ in $(seq 1200); do
@@ -153,7 +153,7 @@ done
 
 stamp "the same 8 tasks unsharded in one process (--jobs $cpus)"
 t2=$(date +%s.%N)
-"$bin/grop" --log warn hil --tasks 8 --jobs "$cpus" --no-build --out-dir "$work/whole" >/dev/null 2>"$work/whole.err" \
+"$bin/grop" --log warn hil --tasks 8 --jobs "$cpus" --no-lidar --no-build --out-dir "$work/whole" >/dev/null 2>"$work/whole.err" \
     || { cat "$work/whole.err"; exit 1; }
 t3=$(date +%s.%N)
 
