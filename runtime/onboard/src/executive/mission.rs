@@ -15,7 +15,7 @@ use std::time::Duration;
 
 use grop_ipc::{
     EventKind, EventMsg, LoadRequestMsg, PoseFixKind, ProcessRole, ReplanReason, ReplanRequestMsg,
-    TaskPlanMsg, TaskStep, TaskStepKind,
+    TaskStep, TaskStepKind,
 };
 use motion_control::Twist;
 use motion_control::follower::PathFollower;
@@ -162,7 +162,7 @@ pub struct MissionCore {
     /// Legs failed in a row.
     pub(super) failed_legs: u32,
     /// Plans refused in a row.
-    plans_refused: u32,
+    pub(super) plans_refused: u32,
     /// The unload in progress (in place: a new one overwrites it, nothing is allocated).
     unload: Option<UnloadSequence>,
     pub(super) steps: Vec<TaskStep>,
@@ -173,7 +173,7 @@ pub struct MissionCore {
     request_id: u64,
     /// Load requests sent (`load/request`), the last one's id.
     load_request_id: u64,
-    request_sent: Option<Duration>,
+    pub(super) request_sent: Option<Duration>,
     last_request: ReplanRequestMsg,
     /// Standing still after a localisation jump until then.
     jump_hold_until: Option<Duration>,
@@ -543,74 +543,6 @@ impl MissionCore {
     /// Pose fixes refused for a stamp in the future.
     pub fn future_fixes(&self) -> u64 {
         self.future_fixes
-    }
-
-    /// A plan refused: the planner keeps answering what the executive cannot take, so after
-    /// [`super::PLANS_REFUSED_LIMIT`] in a row the mission is given up (stopped, not spun).
-    fn plan_refused(&mut self, now: Duration, outputs: &mut CycleOutputs) {
-        self.plans_refused += 1;
-        if self.plans_refused >= super::PLANS_REFUSED_LIMIT {
-            self.abort(AbortReason::PlansRefused, now, outputs);
-        }
-    }
-
-    fn take_plan(&mut self, plan: &TaskPlanMsg, now: Duration, outputs: &mut CycleOutputs) {
-        let Ok(steps) = plan.steps() else {
-            self.event(
-                EventKind::StaleInput,
-                now,
-                format_args!("plan {} rejected: malformed", plan.plan_id),
-                outputs,
-            );
-            self.plan_refused(now, outputs);
-            return;
-        };
-        if let Err(defect) = self.check_steps(steps) {
-            self.event(
-                EventKind::StaleInput,
-                now,
-                format_args!("plan {} rejected: {defect}", plan.plan_id),
-                outputs,
-            );
-            self.plan_refused(now, outputs);
-            return;
-        }
-        if let Err((i, count, slots)) = self.check_tray(steps) {
-            self.event(
-                EventKind::StaleInput,
-                now,
-                format_args!(
-                    "plan {} rejected: step {i} loads {count} objects onto a tray of {slots} slots",
-                    plan.plan_id
-                ),
-                outputs,
-            );
-            self.plan_refused(now, outputs);
-            return;
-        }
-        self.plans_refused = 0;
-        self.stats.plans += 1;
-        self.steps.clear();
-        self.steps.extend_from_slice(steps);
-        self.plan_id = plan.plan_id;
-        self.step_index = 0;
-        self.phase = None;
-        self.request_sent = None;
-        self.event(
-            EventKind::PlanStarted,
-            now,
-            // Not the wall-clock decision time: events are behaviour, and the same mission
-            // must log the same events (the time is in the plan and the log's /timing/).
-            format_args!(
-                "plan {}: {} steps, U={:.1} F={:.2} C={:.1}s",
-                plan.plan_id,
-                steps.len(),
-                plan.utility,
-                plan.feasibility,
-                plan.cost_s
-            ),
-            outputs,
-        );
     }
 
     pub(super) fn on_board(&self) -> u64 {

@@ -1,8 +1,12 @@
 //! The checks a plan passes before the core follows it: every number against what the robot
-//! and the map allow, and the loads against the tray.
+//! and the map allow, and the loads against the tray; taking a plan in, or refusing it.
 
-use grop_ipc::{TaskStep, TaskStepKind};
+use std::time::Duration;
 
+use grop_ipc::{EventKind, TaskPlanMsg, TaskStep, TaskStepKind};
+
+use super::AbortReason;
+use super::cycle::CycleOutputs;
 use super::mission::MissionCore;
 
 /// The longest leg a plan may ask for, s (an hour: no table-setting leg comes near it).
@@ -127,5 +131,78 @@ impl MissionCore {
             }
         }
         Ok(())
+    }
+
+    /// A plan refused: the planner keeps answering what the executive cannot take, so after
+    /// [`super::PLANS_REFUSED_LIMIT`] in a row the mission is given up (stopped, not spun).
+    fn plan_refused(&mut self, now: Duration, outputs: &mut CycleOutputs) {
+        self.plans_refused += 1;
+        if self.plans_refused >= super::PLANS_REFUSED_LIMIT {
+            self.abort(AbortReason::PlansRefused, now, outputs);
+        }
+    }
+
+    pub(super) fn take_plan(
+        &mut self,
+        plan: &TaskPlanMsg,
+        now: Duration,
+        outputs: &mut CycleOutputs,
+    ) {
+        let Ok(steps) = plan.steps() else {
+            self.event(
+                EventKind::StaleInput,
+                now,
+                format_args!("plan {} rejected: malformed", plan.plan_id),
+                outputs,
+            );
+            self.plan_refused(now, outputs);
+            return;
+        };
+        if let Err(defect) = self.check_steps(steps) {
+            self.event(
+                EventKind::StaleInput,
+                now,
+                format_args!("plan {} rejected: {defect}", plan.plan_id),
+                outputs,
+            );
+            self.plan_refused(now, outputs);
+            return;
+        }
+        if let Err((i, count, slots)) = self.check_tray(steps) {
+            self.event(
+                EventKind::StaleInput,
+                now,
+                format_args!(
+                    "plan {} rejected: step {i} loads {count} objects onto a tray of {slots} slots",
+                    plan.plan_id
+                ),
+                outputs,
+            );
+            self.plan_refused(now, outputs);
+            return;
+        }
+        self.plans_refused = 0;
+        self.stats.plans += 1;
+        self.steps.clear();
+        self.steps.extend_from_slice(steps);
+        self.plan_id = plan.plan_id;
+        self.step_index = 0;
+        self.phase = None;
+        self.request_sent = None;
+        self.event(
+            EventKind::PlanStarted,
+            now,
+            // Not the wall-clock decision time: events are behaviour, and the same mission
+            // must log the same events (the time is in the plan and the log's /timing/).
+            format_args!(
+                "plan {}: {} steps, U={:.1} F={:.2} C={:.1}s",
+                plan.plan_id,
+                steps.len(),
+                plan.utility,
+                plan.feasibility,
+                plan.cost_s
+            ),
+            outputs,
+        );
     }
 }
