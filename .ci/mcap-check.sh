@@ -17,7 +17,8 @@ if ! "$venv/bin/python" -c "import mcap, importlib.metadata as m; assert m.versi
     "$venv/bin/pip" install --quiet --disable-pip-version-check "mcap==1.6.0"
 fi
 
-cargo build --quiet -p grop-cli -p hil-world -p grop-onboard --bins
+# The feature set of `cargo test --workspace` (which CI runs first): nothing compiles again.
+cargo build --quiet --workspace --bins --examples
 work="$(mktemp -d)"
 trap 'rm -rf "$work"' EXIT
 RUST_LOG="${RUST_LOG:-warn}" "$root/target/debug/grop" --log warn demo --no-build \

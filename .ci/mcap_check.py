@@ -10,7 +10,7 @@ from mcap.reader import make_reader
 
 EXPECTED = {
     "/camera/frame", "/heatmaps", "/plan/task", "/plan/request", "/base/pose", "/base/state",
-    "/arm/state", "/arm/io", "/events", "/health", "/can", "/timing/decision", "/load/request",
+    "/arm/state", "/arm/io", "/events", "/health", "/can", "/timing/decision", "/load/request", "/operator/enable",
 }
 
 

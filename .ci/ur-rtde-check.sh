@@ -20,7 +20,8 @@ if ! "$venv/bin/python" -c "import rtde_receive, dashboard_client" 2>/dev/null; 
     "$venv/bin/pip" install --quiet --disable-pip-version-check "ur-rtde==1.6.5"
 fi
 
-cargo build --quiet -p sim-ur5e --bin sim-ur5e
+# The feature set of `cargo test --workspace` (which CI runs first): nothing compiles again.
+cargo build --quiet --workspace --bins --examples
 sim="$root/target/debug/sim-ur5e"
 
 if (exec 3<>/dev/tcp/127.0.0.1/30004) 2>/dev/null; then

@@ -21,7 +21,8 @@ if ! "$venv/bin/python" -c "import rtde_control, rtde_receive, urx" 2>/dev/null;
     "$venv/bin/pip" install --quiet --disable-pip-version-check "ur-rtde==1.6.5" "urx==0.11.0"
 fi
 
-cargo build --quiet -p sim-ur5e --bin sim-ur5e
+# The feature set of `cargo test --workspace` (which CI runs first): nothing compiles again.
+cargo build --quiet --workspace --bins --examples
 sim="$target/debug/sim-ur5e"
 
 for port in 29999 30002 30003 30004; do

@@ -21,5 +21,8 @@ fi
 
 work="$(mktemp -d)"
 trap 'rm -rf "$work"' EXIT
-cargo run --quiet -p vlp16 --example sim_pcap -- "$work" </dev/null
+# Built with the feature set of `cargo test --workspace` (which CI runs first): nothing compiles
+# again (`cargo run -p vlp16` alone would build its dependencies with other features).
+cargo build --quiet --workspace --bins --examples
+"${CARGO_TARGET_DIR:-$root/target}/debug/examples/sim_pcap" "$work" </dev/null
 "$venv/bin/python" "$root/.ci/vlp16_decoder_check.py" "$work/sim.pcap" "$work/points.csv"

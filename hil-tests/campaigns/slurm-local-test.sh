@@ -29,7 +29,12 @@ fi
 stamp "$(slurmctld -V), $(munged -V 2>&1 | head -1)"
 
 stamp "building the binaries once ($profile) before the array"
-cargo build --quiet $([ "$profile" = release ] && echo --release) -p grop-cli -p hil-world -p grop-onboard --bins
+if [ "$profile" = release ]; then
+    cargo build --quiet --release -p grop-cli -p hil-world -p grop-onboard --bins
+else
+    # The feature set of `cargo test --workspace` (which CI runs first): nothing compiles again.
+    cargo build --quiet --workspace --bins --examples
+fi
 
 work="$(mktemp -d /tmp/grop-slurm-test.XXXXXX)"
 chmod 755 "$work"

@@ -61,6 +61,11 @@ pub struct Args {
     #[arg(long)]
     #[serde(default)]
     pub no_build: bool,
+    /// Do not simulate the range sensor: the executive drives without its collision monitor
+    /// (a mission runs several times faster; what the campaign tests use).
+    #[arg(long)]
+    #[serde(default)]
+    pub no_lidar: bool,
     /// Run only shard I of N (0-based) of the missions: mission i when i mod N == I (its scene
     /// and seed stay those of mission i). The shard judges memory over its own missions, after
     /// its own warm-up (`--warm-up` of its missions), and writes its rows, its soak.md and its
@@ -178,6 +183,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         let dir = out_dir.join(format!("mission-{i}-scene-{seed}"));
         let spec = MissionSpec {
             method: args.method.clone(),
+            lidar: !args.no_lidar,
             ..MissionSpec::new(
                 dir.clone(),
                 world::generate::evaluation_scene(seed, 5 + (seed % 16) as usize, 3),

@@ -12,6 +12,7 @@ mod cmd_bench_settings;
 mod cmd_datagen;
 mod cmd_demo;
 mod cmd_demo_closed_loop;
+mod cmd_enable;
 mod cmd_eval;
 mod cmd_eval_settings;
 mod cmd_hil;
@@ -70,6 +71,9 @@ enum Command {
     /// Merge the shard folders of a campaign (`--shard I/N` runs of eval, hil, soak or datagen)
     /// into what one unsharded run writes (docs/campaigns.md).
     Merge(cmd_merge::Args),
+    /// The operator's enable: arms a (re)started executive, lets a mission paused by a
+    /// safeguard stop go on once the stop has cleared (docs/runtime.md).
+    Enable(cmd_enable::Args),
 }
 
 fn main() -> std::process::ExitCode {
@@ -88,6 +92,7 @@ fn main() -> std::process::ExitCode {
         Command::Latency(a) => cmd_latency::run(a),
         Command::Soak(a) => cmd_soak::run(a),
         Command::Merge(a) => cmd_merge::run(a),
+        Command::Enable(a) => cmd_enable::run(a),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

@@ -3,35 +3,15 @@
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Output;
 
-fn grop(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_grop"))
-        .args(args)
-        .args(["--log", "warn"])
-        .output()
-        .expect("the grop binary runs")
-}
-
-fn text(o: &Output) -> String {
-    format!(
-        "{}{}",
-        String::from_utf8_lossy(&o.stdout),
-        String::from_utf8_lossy(&o.stderr)
-    )
-}
+mod common;
+use common::{grop, model, text};
 
 fn ok(o: Output) -> String {
     let t = text(&o);
     assert!(o.status.success(), "{t}");
     t
-}
-
-fn model() -> String {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../../models/psi-fcn.onnx")
-        .display()
-        .to_string()
 }
 
 /// Every file under `dir` (relative path -> bytes).
@@ -374,6 +354,8 @@ fn soak_in_two_shards_adds_up_counts_and_judges_memory_per_shard() {
             "2",
             "--warm-up",
             "1",
+            // Blind (no range sensor): this test is about shards adding up.
+            "--no-lidar",
             "--out-dir",
             s(&shards),
             "--shard",

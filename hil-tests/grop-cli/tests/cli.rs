@@ -4,28 +4,8 @@
 use std::path::PathBuf;
 use std::process::{Command, Output};
 
-fn grop(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_grop"))
-        .args(args)
-        .args(["--log", "warn"])
-        .output()
-        .expect("the grop binary runs")
-}
-
-fn model() -> String {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../../models/psi-fcn.onnx")
-        .display()
-        .to_string()
-}
-
-fn text(o: &Output) -> String {
-    format!(
-        "{}{}",
-        String::from_utf8_lossy(&o.stdout),
-        String::from_utf8_lossy(&o.stderr)
-    )
-}
+mod common;
+use common::{grop, model, text};
 
 #[test]
 fn demo_runs_the_closed_loop_and_reports_decision_steps_and_latency() {

@@ -89,6 +89,10 @@ pub struct WorldConfig {
     pub fault: Option<FaultSpec>,
     /// Simulate the robot file's range sensor (the executive's collision monitor needs it).
     pub lidar: bool,
+    /// The world plays the deployment's operator: when the executive asks for the enable (at
+    /// start, and after a latched safety stop whose cause cleared) it gives it this much later
+    /// on `operator/enable`. `None`: it never does (the executive then never arms).
+    pub operator_delay: Option<Duration>,
 }
 
 impl WorldConfig {
@@ -121,6 +125,7 @@ impl WorldConfig {
             progress_every: None,
             fault: None,
             lidar: true,
+            operator_delay: Some(Duration::from_millis(100)),
         }
     }
 }
@@ -174,6 +179,7 @@ struct Ports {
     poses: TopicPublisher<BasePoseMsg>,
     world_events: TopicPublisher<EventMsg>,
     health: TopicPublisher<HeartbeatMsg>,
+    enable: TopicPublisher<grop_ipc::OperatorEnableMsg>,
     events: TopicSubscriber<EventMsg>,
     plans: TopicSubscriber<TaskPlanMsg>,
     loads: TopicSubscriber<LoadRequestMsg>,
@@ -249,6 +255,7 @@ impl World {
             poses: node.publisher().map_err(ipc)?,
             world_events: node.publisher().map_err(ipc)?,
             health: node.publisher().map_err(ipc)?,
+            enable: node.publisher().map_err(ipc)?,
             events: node.subscriber().map_err(ipc)?,
             plans: node.subscriber().map_err(ipc)?,
             loads: node.subscriber().map_err(ipc)?,
@@ -364,6 +371,9 @@ impl World {
         let mut was_moving = false;
         let mut leg_recorded = true;
         let mut goal_reached_pending = false;
+        // The operator's enable, asked for and due then.
+        let mut enable_due: Option<Duration> = None;
+        let mut enable_seq = 0u64;
         let mut collided_this_leg = false;
         let mut in_collision = [false; 2];
         let mut blocked_since_check = false;
@@ -686,6 +696,21 @@ impl World {
                 });
             }
 
+            // The operator.
+            if enable_due.is_some_and(|due| now >= due) {
+                enable_due = None;
+                enable_seq += 1;
+                let _ = self.ports.enable.publish(&grop_ipc::OperatorEnableMsg {
+                    seq: enable_seq,
+                    stamp_ns: ns(now),
+                    pid: std::process::id(),
+                    reserved: 0,
+                });
+                if cfg.progress_every.is_some() {
+                    println!("[{:7.2} s] operator: enable", secs(now));
+                }
+            }
+
             // Camera.
             if now >= next_frame {
                 next_frame = now + cfg.camera_period;
@@ -775,6 +800,12 @@ impl World {
                 };
                 if kind == Ok(grop_ipc::EventKind::GoalReached) {
                     goal_reached_pending = true;
+                }
+                // The executive asks for the operator's enable: the operator gives it.
+                if kind == Ok(grop_ipc::EventKind::Enable)
+                    && detail.contains("waiting for the operator's enable")
+                {
+                    enable_due = cfg.operator_delay.map(|d| now + d);
                 }
                 if kind == Ok(grop_ipc::EventKind::ReplanRequested) && first_request.is_none() {
                     first_request = Some(ns_to_s(ev.stamp_ns));

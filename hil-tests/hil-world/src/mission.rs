@@ -51,9 +51,10 @@ fn find_in(dir: &Path) -> Option<Binaries> {
 }
 
 /// Finds the binaries next to the running program (or one folder up, for test binaries in
-/// `target/<profile>/deps`). With `build`, first runs `cargo build` for them in the same
-/// profile (quick when nothing changed), so a fresh clone's `cargo run -p grop-cli -- demo`
-/// builds everything it starts, from any working directory.
+/// `target/<profile>/deps`). With `build`, first runs `cargo build --workspace --bins
+/// --examples` in the same profile: the feature set `cargo test --workspace` builds with, so
+/// after the test build this compiles nothing (a build of just the world and the onboard
+/// packages would compile about 40 crates again with other features). For tests.
 pub fn binaries(build: bool) -> anyhow::Result<Binaries> {
     binaries_built_with(build, &[])
 }
@@ -77,14 +78,19 @@ pub fn binaries_built_with(build: bool, packages: &[&str]) -> anyhow::Result<Bin
             let release = dir.components().any(|c| c.as_os_str() == "release");
             let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
             let mut cmd = Command::new(cargo);
-            cmd.arg("build")
-                .arg("--manifest-path")
-                .arg(&manifest)
-                .args(["-p", "hil-world", "-p", "grop-onboard"]);
-            for p in packages {
-                cmd.args(["-p", p]);
+            cmd.arg("build").arg("--manifest-path").arg(&manifest);
+            if packages.is_empty() {
+                // Called from a test binary: `cargo test --workspace` already built every bin
+                // with the features of the whole workspace and its dev-dependencies; this set
+                // (and no smaller one) gives the same features, so nothing compiles again.
+                cmd.args(["--workspace", "--bins", "--examples"]);
+            } else {
+                cmd.args(["-p", "hil-world", "-p", "grop-onboard"]);
+                for p in packages {
+                    cmd.args(["-p", p]);
+                }
+                cmd.arg("--bins");
             }
-            cmd.arg("--bins");
             if release {
                 cmd.arg("--release");
             }

@@ -167,6 +167,9 @@ struct Harness {
     plans: TopicPublisher<TaskPlanMsg>,
     poses: TopicPublisher<grop_ipc::BasePoseMsg>,
     health: TopicPublisher<HeartbeatMsg>,
+    /// The operator's enable, given once the executive runs (a start is not an enable).
+    enable: TopicPublisher<grop_ipc::OperatorEnableMsg>,
+    enabled: bool,
     requests: TopicSubscriber<ReplanRequestMsg>,
     events: TopicSubscriber<EventMsg>,
     states: TopicSubscriber<BaseStateMsg>,
@@ -218,6 +221,8 @@ impl Harness {
             plans: test_node.publisher().unwrap(),
             poses: test_node.publisher().unwrap(),
             health: test_node.publisher().unwrap(),
+            enable: test_node.publisher().unwrap(),
+            enabled: false,
             requests: test_node.subscriber().unwrap(),
             events: test_node.subscriber().unwrap(),
             states: test_node.subscriber().unwrap(),
@@ -270,6 +275,17 @@ impl Harness {
     /// executive's cycle only.
     fn cycle(&mut self, count: bool) {
         let now = self.now;
+        if !self.enabled && now > Duration::ZERO {
+            self.enabled = true;
+            self.enable
+                .publish(&grop_ipc::OperatorEnableMsg {
+                    seq: 1,
+                    stamp_ns: now.as_nanos() as u64,
+                    pid: std::process::id(),
+                    reserved: 0,
+                })
+                .unwrap();
+        }
         self.base.poll(now).unwrap();
         if let Some(noisy) = &mut self.noisy {
             let (v, w) = self.base.sim().velocity();

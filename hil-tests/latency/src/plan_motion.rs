@@ -78,6 +78,7 @@ fn one(namespace: &str) -> anyhow::Result<Duration> {
     let plans = node.publisher::<TaskPlanMsg>()?;
     let poses = node.publisher::<BasePoseMsg>()?;
     let health = node.publisher::<HeartbeatMsg>()?;
+    let enable = node.publisher::<grop_ipc::OperatorEnableMsg>()?;
     let requests = node.subscriber::<ReplanRequestMsg>()?;
     let start = scene.robot_start;
     let goal = [start.x_m, start.y_m + 1.2, start.yaw_rad];
@@ -133,6 +134,15 @@ fn one(namespace: &str) -> anyhow::Result<Duration> {
             }
         }
         exec.cycle(clock.now());
+        if now == begin {
+            // The operator's enable, once the executive runs (a start is not an enable).
+            enable.publish(&grop_ipc::OperatorEnableMsg {
+                seq: 1,
+                stamp_ns: ns(clock.now()),
+                pid: std::process::id(),
+                reserved: 0,
+            })?;
+        }
         while let Some(frame) = tap.try_recv().context("the bus tap")? {
             let motion = frame.id() == CanId::Standard(rmp_codec::v3::MOTION_ID)
                 && frame.data().iter().any(|b| *b != 0);

@@ -55,6 +55,9 @@ pub const ARM_FLAG_PROTECTIVE_STOP: u32 = 2;
 pub const ARM_FLAG_EMERGENCY_STOP: u32 = 4;
 /// [`ArmIoMsg::flags`]: `StartGripper` closes (else opens).
 pub const ARM_FLAG_CLOSE: u32 = 8;
+/// [`ArmIoMsg::flags`]: the UR `safety_mode` in bits 8 to 15 (0: not reported; logs before
+/// `log_format` 3 have 0 there).
+pub const ARM_SAFETY_MODE_SHIFT: u32 = 8;
 
 /// One call on the arm (`arm/io`).
 #[derive(Clone, Copy, Debug, Default, PartialEq, ZeroCopySend)]

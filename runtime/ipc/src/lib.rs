@@ -16,6 +16,7 @@
 //! | `<ns>/health` | [`HeartbeatMsg`] | none |
 //! | `<ns>/camera/frame` | [`CameraFrameMsg`] (1280 x 960 RGB8 max + metric header) | newest frame |
 //! | `<ns>/arm/io` | [`ArmIoMsg`] (every call on the arm and its answer) | none |
+//! | `<ns>/operator/enable` | [`OperatorEnableMsg`] (the operator's enable) | newest |
 //!
 //! ```no_run
 //! use std::time::Duration;
@@ -49,7 +50,8 @@ mod port;
 
 pub use arm_io::{
     ARM_FLAG_CLOSE, ARM_FLAG_EMERGENCY_STOP, ARM_FLAG_PROGRAM_RUNNING, ARM_FLAG_PROTECTIVE_STOP,
-    ARM_STATUS_DONE, ARM_STATUS_DONE_HOLDING, ARM_STATUS_RUNNING, ArmCall, ArmIoMsg, ArmOutcome,
+    ARM_SAFETY_MODE_SHIFT, ARM_STATUS_DONE, ARM_STATUS_DONE_HOLDING, ARM_STATUS_RUNNING, ArmCall,
+    ArmIoMsg, ArmOutcome,
 };
 pub use camera::{
     CAMERA_MAX_BYTES, CAMERA_MAX_HEIGHT_PX, CAMERA_MAX_WIDTH_PX, CameraFrameHeader, CameraFrameMsg,
@@ -61,8 +63,8 @@ pub use messages::{
 };
 pub use mission::{
     BasePoseMsg, HEATMAP_COLS, HEATMAP_ROWS, HeartbeatMsg, HeatmapsMsg, LoadRequestMsg,
-    LocationHeatmap, MAX_HEATMAPS, MAX_TASK_OBJECTS, MAX_TASK_STEPS, PoseFixKind, ProcessRole,
-    ReplanReason, ReplanRequestMsg, TaskPlanMsg, TaskStep, TaskStepKind,
+    LocationHeatmap, MAX_HEATMAPS, MAX_TASK_OBJECTS, MAX_TASK_STEPS, OperatorEnableMsg,
+    PoseFixKind, ProcessRole, ReplanReason, ReplanRequestMsg, TaskPlanMsg, TaskStep, TaskStepKind,
 };
 pub use port::{
     FrameError, IpcNode, NodeError, PortError, PublishError, ReceiveError, Received,
@@ -102,6 +104,7 @@ mod sealed {
     impl Sealed for super::HeartbeatMsg {}
     impl Sealed for super::CameraFrameMsg {}
     impl Sealed for super::ArmIoMsg {}
+    impl Sealed for super::OperatorEnableMsg {}
 }
 
 impl Topic for BaseStateMsg {
@@ -221,6 +224,20 @@ impl Topic for CameraFrameMsg {
     const MAX_PUBLISHERS: usize = 2;
     fn stamp_ns(&self) -> u64 {
         self.header.stamp_ns
+    }
+}
+
+impl Topic for OperatorEnableMsg {
+    const NAME: &'static str = "operator/enable";
+    // The newest, for an executive that starts after it: it takes it only if it was given
+    // after its own start (a restart is not an enable).
+    const HISTORY: usize = 1;
+    const BUFFER: usize = 4;
+    const MAX_SUBSCRIBERS: usize = 4;
+    // The deployment's one operator (a console, `grop enable`, the HIL world).
+    const MAX_PUBLISHERS: usize = 1;
+    fn stamp_ns(&self) -> u64 {
+        self.stamp_ns
     }
 }
 

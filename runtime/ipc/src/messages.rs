@@ -330,6 +330,9 @@ pub enum EventKind {
     /// let it go again, or the base stalled against something (commanded motion, none
     /// measured); the detail says which.
     Obstacle = 20,
+    /// The operator's enable: waited for at start, taken (arming the base, or releasing a
+    /// latched safety stop whose cause cleared), or refused (the cause is still there).
+    Enable = 21,
 }
 
 impl EventKind {
@@ -355,6 +358,7 @@ impl EventKind {
             18 => Self::NotPlanned,
             19 => Self::LoadRequested,
             20 => Self::Obstacle,
+            21 => Self::Enable,
             _ => {
                 return Err(MessageError::UnknownEnumValue {
                     message: "EventMsg",

@@ -606,6 +606,24 @@ impl HeartbeatMsg {
     }
 }
 
+/// The operator's enable (`operator/enable`): the one explicit command that arms the robot at
+/// start and lets it go on after a latched safety stop whose cause has cleared. The executive
+/// takes only an enable stamped after it started (or after the stop it releases), so a
+/// restarted executive never re-arms on an old one.
+#[derive(Clone, Copy, Debug, PartialEq, ZeroCopySend)]
+#[repr(C)]
+#[type_name("grop_ipc::OperatorEnableMsg/v1")]
+pub struct OperatorEnableMsg {
+    /// Counter, increasing per operator.
+    pub seq: u64,
+    /// When the operator gave it, runtime clock, nanoseconds.
+    pub stamp_ns: u64,
+    /// Operating-system process id of the sender.
+    pub pid: u32,
+    /// Zero.
+    pub reserved: u32,
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -620,6 +638,7 @@ mod tests {
         assert_eq!(size_of::<LocationHeatmap>(), 40 + 4 * 2048);
         assert_eq!(size_of::<BasePoseMsg>(), 64);
         assert_eq!(size_of::<HeartbeatMsg>(), 32);
+        assert_eq!(size_of::<OperatorEnableMsg>(), 24);
     }
 
     #[test]

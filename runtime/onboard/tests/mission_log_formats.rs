@@ -2,7 +2,10 @@
 //!
 //! `tests/data/mission-log-v1.mcap` is a version-1 log (no `grop.log` record): the first
 //! 4 simulated seconds of `grop demo --max-sim-s 4` (640 x 480 camera), written by the build
-//! before version 2 existed (commit 5d0e6ef0). It stays as it is; the reader and `grop replay` must keep reading it.
+//! before version 2 existed (commit 5d0e6ef0). `tests/data/mission-log-v2.mcap` is the same
+//! for version 2, written by the build before version 3 (commit 5cc3e9a9: no operator enable,
+//! no safety mode in `/arm/io`). They stay as they are; the reader and `grop replay` must keep
+//! reading them.
 
 use std::path::{Path, PathBuf};
 
@@ -19,12 +22,22 @@ fn repo(path: &str) -> PathBuf {
 }
 
 const V1: &str = "runtime/onboard/tests/data/mission-log-v1.mcap";
+const V2: &str = "runtime/onboard/tests/data/mission-log-v2.mcap";
 
 #[test]
 fn a_version_1_log_reads_and_every_message_decodes() {
-    let log = MissionLog::read(&repo(V1)).expect("the version-1 log reads");
-    assert_eq!(log.log_format, 1);
-    assert!(!log.metadata.contains_key(LOG_METADATA));
+    reads_and_decodes(V1, 1);
+}
+
+#[test]
+fn a_version_2_log_reads_and_every_message_decodes() {
+    reads_and_decodes(V2, 2);
+}
+
+fn reads_and_decodes(path: &str, version: u32) {
+    let log = MissionLog::read(&repo(path)).expect("the old log reads");
+    assert_eq!(log.log_format, version);
+    assert_eq!(log.metadata.contains_key(LOG_METADATA), version >= 2);
     assert!(log.truncated.is_none(), "{:?}", log.truncated);
     assert_eq!(log.unknown, 0);
     let meta = &log.metadata[MISSION_METADATA];
@@ -69,13 +82,24 @@ fn a_version_1_log_reads_and_every_message_decodes() {
 
 #[test]
 fn grop_replay_runs_on_a_version_1_log() {
-    let log = MissionLog::read(&repo(V1)).expect("the version-1 log reads");
+    replays(V1);
+}
+
+#[test]
+fn grop_replay_runs_on_a_version_2_log() {
+    replays(V2);
+}
+
+/// The replay of a log from before the operator's enable existed gives one itself: its
+/// executive arms, plans and drives as the recorded one did.
+fn replays(path: &str) {
+    let log = MissionLog::read(&repo(path)).expect("the old log reads");
     let dir = tempfile::tempdir().expect("a temporary folder");
-    let out = dir.path().join("v1.replay.mcap");
+    let out = dir.path().join("old.replay.mcap");
     // The log names the model by the absolute path it had where it was recorded: give the
     // repository's (the same file; its SHA-256 is then not checked).
     let report = replay(
-        &repo(V1),
+        &repo(path),
         &ReplayOptions {
             model: Some(repo("models/psi-fcn.onnx")),
             out: Some(out.clone()),
@@ -96,6 +120,11 @@ fn grop_replay_runs_on_a_version_1_log() {
     // a log of the same build: hil-tests/hil-world/tests/mission_log.rs).
     let replayed = MissionLog::read(&out).expect("the replay's log reads");
     assert_eq!(replayed.log_format, LOG_FORMAT);
+    // The stand-in enable armed the executive: it asked for a plan and for tractor mode.
+    assert!(
+        replayed.channel(Channel::PlanRequest).count() > 0,
+        "the replayed executive never asked for a plan"
+    );
     assert_eq!(
         replayed.metadata[MISSION_METADATA]["map"],
         log.metadata[MISSION_METADATA]["map"]

@@ -322,17 +322,20 @@ impl RayScene {
                 kind = Some(HitKind::Floor);
             }
         }
-        let hxy = dir[0].hypot(dir[1]);
+        let hxy = (dir[0] * dir[0] + dir[1] * dir[1]).sqrt();
+        let inv_hxy = if hxy > 1e-12 { 1.0 / hxy } else { 0.0 };
         for b in &self.boxes {
-            // Broad phase in the plane: the bounding circle against the ray's line.
+            // Broad phase in the plane: the bounding circle against the ray's line, and
+            // nothing wholly farther than the nearest hit so far (a ray reaches horizontal
+            // distance `along` at range `along / hxy`).
             let (ox, oy) = (b.cx - origin[0], b.cy - origin[1]);
             if hxy > 1e-12 {
-                let along = (ox * dir[0] + oy * dir[1]) / hxy;
-                let across = (ox * dir[1] - oy * dir[0]).abs() / hxy;
-                if across > b.r || along < -b.r {
+                let along = (ox * dir[0] + oy * dir[1]) * inv_hxy;
+                let across = (ox * dir[1] - oy * dir[0]).abs() * inv_hxy;
+                if across > b.r || along < -b.r || along - b.r > best * hxy {
                     continue;
                 }
-            } else if ox.hypot(oy) > b.r {
+            } else if ox * ox + oy * oy > b.r * b.r {
                 continue;
             }
             if let Some(t) = b.hit(origin, dir)

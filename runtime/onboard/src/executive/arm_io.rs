@@ -6,8 +6,8 @@ use std::time::Duration;
 
 use grop_ipc::{
     ARM_FLAG_CLOSE, ARM_FLAG_EMERGENCY_STOP, ARM_FLAG_PROGRAM_RUNNING, ARM_FLAG_PROTECTIVE_STOP,
-    ARM_STATUS_DONE, ARM_STATUS_DONE_HOLDING, ARM_STATUS_RUNNING, ArmCall, ArmIoMsg, ArmOutcome,
-    IpcNode, PortError, TopicPublisher,
+    ARM_SAFETY_MODE_SHIFT, ARM_STATUS_DONE, ARM_STATUS_DONE_HOLDING, ARM_STATUS_RUNNING, ArmCall,
+    ArmIoMsg, ArmOutcome, IpcNode, PortError, TopicPublisher,
 };
 use ur5e_kin::Joints;
 
@@ -51,7 +51,8 @@ pub fn put_snapshot(m: &mut ArmIoMsg, s: &ArmSnapshot) {
     let flag = |on: bool, bit: u32| if on { bit } else { 0 };
     m.flags = flag(s.program_running, ARM_FLAG_PROGRAM_RUNNING)
         | flag(s.protective_stop, ARM_FLAG_PROTECTIVE_STOP)
-        | flag(s.emergency_stop, ARM_FLAG_EMERGENCY_STOP);
+        | flag(s.emergency_stop, ARM_FLAG_EMERGENCY_STOP)
+        | (u32::try_from(s.safety_mode).unwrap_or(0) & 0xff) << ARM_SAFETY_MODE_SHIFT;
 }
 
 /// The answer of an `update` recorded in `m`.
@@ -64,6 +65,7 @@ pub fn snapshot_of(m: &ArmIoMsg) -> ArmSnapshot {
         robot_mode: m.robot_mode,
         protective_stop: m.flags & ARM_FLAG_PROTECTIVE_STOP != 0,
         emergency_stop: m.flags & ARM_FLAG_EMERGENCY_STOP != 0,
+        safety_mode: ((m.flags >> ARM_SAFETY_MODE_SHIFT) & 0xff) as i32,
     }
 }
 
@@ -208,6 +210,7 @@ mod tests {
             robot_mode: 7,
             protective_stop: false,
             emergency_stop: true,
+            safety_mode: 5,
         };
         let mut m = ArmIoMsg::default();
         put_snapshot(&mut m, &snap);

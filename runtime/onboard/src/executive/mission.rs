@@ -24,6 +24,7 @@ use ur5e_kin::Joints;
 use world::nav::OccupancyGrid;
 
 use super::cycle::{ArmCommand, CycleInputs, CycleOutputs, MonitorMode};
+use super::safety::{self, Latch};
 use super::unload::{
     ArmFault, ArmPort, SkillStatus, TrayGeometry, UnloadFailure, UnloadProgress, UnloadSequence,
 };
@@ -36,7 +37,7 @@ const PARKING_TIMEOUT: Duration = Duration::from_secs(20);
 
 /// Where the arm is on its way to the carry pose.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Parking {
+pub(super) enum Parking {
     /// Not asked yet.
     NotStarted,
     /// Moving since then.
@@ -158,13 +159,13 @@ pub struct MissionCore {
     pub(super) at_table: bool,
     /// The arm's way to its carry pose (once, while the first plan is asked for, before the
     /// base first drives).
-    parking: Parking,
+    pub(super) parking: Parking,
     /// Legs failed in a row.
     pub(super) failed_legs: u32,
     /// Plans refused in a row.
     pub(super) plans_refused: u32,
     /// The unload in progress (in place: a new one overwrites it, nothing is allocated).
-    unload: Option<UnloadSequence>,
+    pub(super) unload: Option<UnloadSequence>,
     pub(super) steps: Vec<TaskStep>,
     pub(super) plan_id: u64,
     pub(super) step_index: usize,
@@ -217,6 +218,14 @@ pub struct MissionCore {
     pub(super) forced_turn: Option<f32>,
     /// Since when motion is sent and none measured.
     pub(super) stall_since: Option<Duration>,
+    /// The operator's enable was taken since the executive started (nothing is armed before).
+    pub(super) enabled: bool,
+    /// The wait for the enable was reported.
+    enable_wait_reported: bool,
+    /// A latched safety stop that pauses the mission (a UR safeguard stop).
+    pub(super) latch: Option<Latch>,
+    /// The arm has reported robot mode RUNNING.
+    arm_running_seen: bool,
     pub(super) stats: CoreStats,
 }
 
@@ -282,6 +291,10 @@ impl MissionCore {
             hold_reported: false,
             forced_turn: None,
             stall_since: None,
+            enabled: false,
+            enable_wait_reported: false,
+            latch: None,
+            arm_running_seen: false,
             stats: CoreStats::default(),
         }
     }
@@ -325,6 +338,9 @@ impl MissionCore {
             self.abort(AbortReason::ClockLost, now, outputs);
         }
         self.arm_reading(inputs, outputs);
+        if inputs.operator_enable {
+            self.operator_enable(now, outputs);
+        }
         if let Some(tick) = inputs.base_tick {
             self.base_tick(tick, now, outputs);
         }
@@ -345,9 +361,13 @@ impl MissionCore {
         let now = inputs.now;
         match inputs.arm {
             Ok(snapshot) => {
-                if snapshot.protective_stop || snapshot.emergency_stop {
-                    self.abort(AbortReason::ArmStopped, now, outputs);
-                }
+                let verdict = safety::classify(
+                    &snapshot,
+                    self.arm_running_seen,
+                    self.config.allow_reduced_mode,
+                );
+                self.arm_running_seen |= snapshot.robot_mode == safety::ROBOT_MODE_RUNNING;
+                self.arm_verdict(verdict, now, outputs);
             }
             Err(ArmFault::LinkLost) => self.abort(AbortReason::ArmLinkLost, now, outputs),
             Err(ArmFault::ProtectiveStop | ArmFault::EmergencyStop) => {
@@ -359,7 +379,7 @@ impl MissionCore {
             self.skill_result = inputs.skill;
         }
         if let (Some(Phase::Unloading), Some(seq)) = (&self.phase, &mut self.unload) {
-            if matches!(self.state, MissionState::Running) {
+            if matches!(self.state, MissionState::Running) && self.latch.is_none() {
                 let mut arm = CommandArm {
                     skill: self.skill_result.take(),
                     command: &mut outputs.arm,
@@ -478,6 +498,19 @@ impl MissionCore {
 
         self.velocity = Twist::ZERO;
         match self.state {
+            MissionState::Starting if !self.enabled => {
+                // A start (or a restart) is not an enable: nothing is armed before the
+                // operator's enable.
+                if !self.enable_wait_reported {
+                    self.enable_wait_reported = true;
+                    self.event(
+                        EventKind::Enable,
+                        now,
+                        format_args!("waiting for the operator's enable before arming the base"),
+                        outputs,
+                    );
+                }
+            }
             MissionState::Starting => {
                 if !self.mode_requested {
                     self.mode_requested = true;
@@ -493,6 +526,12 @@ impl MissionCore {
                     // The arm goes to its carry pose while the plan is worked out.
                     self.park_arm(now, outputs);
                 }
+            }
+            MissionState::Running if self.latch.is_some() => {}
+            MissionState::Running if !inputs.base.driving => {
+                // Out of tractor mode without being asked and without a fault word: the driver
+                // would drive again when tractor returns. A safety stop.
+                self.abort(AbortReason::BaseModeLost, now, outputs);
             }
             MissionState::Running => self.mission_step(inputs, outputs),
             MissionState::Finished | MissionState::Aborted(_) => {}
@@ -887,7 +926,7 @@ impl MissionCore {
         }
     }
 
-    fn finish_failed_unload(
+    pub(super) fn finish_failed_unload(
         &mut self,
         step: &TaskStep,
         now: Duration,
@@ -922,8 +961,10 @@ impl MissionCore {
         self.request_sent = None;
         let kind = match reason {
             AbortReason::BaseLinkLost | AbortReason::ArmLinkLost => EventKind::LinkLost,
-            AbortReason::BaseFault | AbortReason::SecondCommander => EventKind::BaseFault,
-            AbortReason::ArmStopped => EventKind::ArmStopped,
+            AbortReason::BaseFault | AbortReason::SecondCommander | AbortReason::BaseModeLost => {
+                EventKind::BaseFault
+            }
+            AbortReason::ArmStopped | AbortReason::ArmUnsafe => EventKind::ArmStopped,
             AbortReason::PlannerLost => EventKind::PeerLost,
             AbortReason::ClockLost
             | AbortReason::Shutdown
@@ -941,7 +982,9 @@ impl MissionCore {
         self.event(
             EventKind::MissionAborted,
             now,
-            format_args!("{reason:?}; restart the executive to re-arm"),
+            format_args!(
+                "{reason:?}; a new mission needs a restart of the executive and the operator's enable"
+            ),
             outputs,
         );
     }

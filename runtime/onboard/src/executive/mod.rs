@@ -41,6 +41,7 @@ pub mod mission;
 pub mod motion_watch;
 pub mod plan_check;
 pub mod range;
+pub mod safety;
 pub mod scan_match;
 pub mod shell;
 pub mod unload;
@@ -87,6 +88,8 @@ pub struct ArmSnapshot {
     pub protective_stop: bool,
     /// Emergency stop.
     pub emergency_stop: bool,
+    /// UR `safety_mode` (1 normal; [`safety::safety_mode`]; 0: not reported).
+    pub safety_mode: i32,
 }
 
 /// Settings of the executive (the robot file's limits enter through [`ExecutiveConfig::for_robot`]).
@@ -141,6 +144,9 @@ pub struct ExecutiveConfig {
     pub docking_blocked_timeout: Duration,
     /// Motion sent to the base with none measured for this long is a stall: the leg stops.
     pub stall_after: Duration,
+    /// The arm may run in UR's reduced safety mode (reduced limits in force); otherwise reduced
+    /// mode pauses the mission like a safeguard stop.
+    pub allow_reduced_mode: bool,
 }
 
 impl ExecutiveConfig {
@@ -176,6 +182,7 @@ impl ExecutiveConfig {
             blocked_timeout: Duration::from_secs(8),
             docking_blocked_timeout: Duration::from_secs(3),
             stall_after: Duration::from_secs(1),
+            allow_reduced_mode: true,
         }
     }
 }
@@ -220,7 +227,7 @@ pub enum MissionState {
     Running,
     /// Every step done.
     Finished,
-    /// Stopped for safety; needs a restart (re-arm).
+    /// Stopped for safety; a new mission needs a restart and the operator's enable.
     Aborted(AbortReason),
 }
 
@@ -237,6 +244,11 @@ pub enum AbortReason {
     ArmLinkLost,
     /// The arm is in a protective or emergency stop.
     ArmStopped,
+    /// The arm's safety mode is one that ends a mission (recovery, violation, fault, ...), or
+    /// its robot mode left running.
+    ArmUnsafe,
+    /// The base left tractor mode without being asked (a mode drop with no fault word).
+    BaseModeLost,
     /// The planning node died.
     PlannerLost,
     /// The clock is lost (the HIL world ended).

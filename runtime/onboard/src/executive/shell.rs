@@ -13,8 +13,8 @@ use can_bus::CanBus;
 use grop_clock::Clock;
 use grop_ipc::{
     ArmSafety, ArmStateMsg, BaseMode as IpcBaseMode, BasePoseMsg, BaseStateMsg, EventMsg,
-    HeartbeatMsg, IpcNode, ProcessRole, ReplanRequestMsg, TaskPlanMsg, TopicPublisher,
-    TopicSubscriber,
+    HeartbeatMsg, IpcNode, OperatorEnableMsg, ProcessRole, ReplanRequestMsg, TaskPlanMsg,
+    TopicPublisher, TopicSubscriber,
 };
 use rmp_base::{BaseError, CanLink, RmpBase, Tick};
 use rmp_codec::v3::OperationalState;
@@ -54,6 +54,7 @@ pub struct ExecutivePorts {
     plans: TopicSubscriber<TaskPlanMsg>,
     poses: TopicSubscriber<BasePoseMsg>,
     peers: TopicSubscriber<HeartbeatMsg>,
+    enables: TopicSubscriber<OperatorEnableMsg>,
 }
 
 impl ExecutivePorts {
@@ -70,6 +71,7 @@ impl ExecutivePorts {
             plans: node.subscriber().map_err(e)?,
             poses: node.subscriber().map_err(e)?,
             peers: node.subscriber().map_err(e)?,
+            enables: node.subscriber().map_err(e)?,
         })
     }
 }
@@ -121,6 +123,12 @@ pub struct Executive<D: BaseDevice, A: ArmDevice> {
     aligned: Option<(PlanarPose, PlanarPose)>,
     /// Alignments the worker made and the shell refused (too few pairs, residual too large).
     alignments_refused: u64,
+    /// The first cycle's time: an enable given before it is not for this executive.
+    started_at: Option<Duration>,
+    /// An operator's enable given after the start came in this base cycle.
+    operator_enable: bool,
+    /// Enables refused (given before this executive started, or stamped in the future).
+    pub(super) enables_refused: u64,
 }
 
 /// The range sensor, the collision monitor and its buffers.
@@ -254,6 +262,9 @@ impl<D: BaseDevice, A: ArmDevice> Executive<D, A> {
             align_in_flight: false,
             aligned: None,
             alignments_refused: 0,
+            started_at: None,
+            operator_enable: false,
+            enables_refused: 0,
             last_verdict: Verdict {
                 twist: Twist::ZERO,
                 action: super::MonitorAction::Stale,
@@ -387,6 +398,7 @@ impl<D: BaseDevice, A: ArmDevice> Executive<D, A> {
     /// One minor cycle at `now`: read, update, write (public so tests can step it).
     pub fn cycle(&mut self, now: Duration) {
         self.stats.cycles += 1;
+        self.started_at.get_or_insert(now);
         let base_cycle =
             self.base_every <= 1 || self.stats.cycles % u64::from(self.base_every.max(1)) == 1;
         self.read(now, base_cycle);
@@ -410,7 +422,7 @@ impl<D: BaseDevice, A: ArmDevice> Executive<D, A> {
             monitor: self.last_verdict.action,
             sent: self.last_verdict.twist,
             aligned: self.aligned.take(),
-            operator_enable: true,
+            operator_enable: self.operator_enable,
         };
         self.outputs.clear();
         self.core.update(&inputs, &mut self.outputs);
@@ -449,6 +461,25 @@ impl<D: BaseDevice, A: ArmDevice> Executive<D, A> {
             match self.ports.poses.try_recv() {
                 Ok(Some(fix)) => self.fixes.push(*fix),
                 _ => break,
+            }
+        }
+        self.operator_enable = false;
+        let since = ns(self.started_at.unwrap_or(now));
+        let latest = ns(now.saturating_add(Duration::from_millis(100)));
+        while let Ok(Some(enable)) = self.ports.enables.try_recv() {
+            if (since..=latest).contains(&enable.stamp_ns) {
+                self.operator_enable = true;
+            } else {
+                // A restart is not an enable: the newest enable (kept for late joiners) was
+                // given to the executive before this one, or the stamp lies.
+                self.enables_refused += 1;
+                log::warn!(
+                    "operator enable #{} from pid {} stamped {:.3} s refused: not given after this executive started at {:.3} s (or in the future)",
+                    enable.seq,
+                    enable.pid,
+                    enable.stamp_ns as f64 * 1e-9,
+                    since as f64 * 1e-9
+                );
             }
         }
         self.planner_heartbeats = 0;

@@ -119,6 +119,7 @@ impl ArmDevice for Ur5eDevice {
                 robot_mode: s.robot_mode,
                 protective_stop: s.protective_stopped(),
                 emergency_stop: s.emergency_stopped(),
+                safety_mode: s.safety_mode,
             }),
             Err(e) => Err(fault(&e)),
         }

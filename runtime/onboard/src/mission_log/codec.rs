@@ -13,7 +13,7 @@ use can_bus::{CanFrame, CanId};
 use grop_ipc::{
     ArmIoMsg, ArmStateMsg, BasePoseMsg, BaseStateMsg, CameraFrameHeader, CameraFrameMsg, EventMsg,
     HEATMAP_COLS, HEATMAP_ROWS, HeartbeatMsg, HeatmapsMsg, LoadRequestMsg, MAX_HEATMAPS,
-    MAX_TASK_STEPS, ReplanRequestMsg, TaskPlanMsg,
+    MAX_TASK_STEPS, OperatorEnableMsg, ReplanRequestMsg, TaskPlanMsg,
 };
 use serde::{Deserialize, Serialize};
 use serde_json::{Value, json};
@@ -47,11 +47,13 @@ pub enum Channel {
     DecisionTiming,
     /// `load/request` (the objects the executive asks the station to put on the tray).
     LoadRequest,
+    /// `operator/enable` (the operator's enable; since `log_format` 3).
+    OperatorEnable,
 }
 
 impl Channel {
     /// All channels, in channel-id order.
-    pub const ALL: [Channel; 13] = [
+    pub const ALL: [Channel; 14] = [
         Channel::CameraFrame,
         Channel::Heatmaps,
         Channel::TaskPlan,
@@ -65,6 +67,7 @@ impl Channel {
         Channel::Can,
         Channel::DecisionTiming,
         Channel::LoadRequest,
+        Channel::OperatorEnable,
     ];
 
     /// The MCAP topic.
@@ -83,6 +86,7 @@ impl Channel {
             Channel::Can => "/can",
             Channel::DecisionTiming => "/timing/decision",
             Channel::LoadRequest => "/load/request",
+            Channel::OperatorEnable => "/operator/enable",
         }
     }
 
@@ -107,6 +111,7 @@ impl Channel {
             Channel::Can => "grop.CanFrame",
             Channel::DecisionTiming => "grop.DecisionTiming",
             Channel::LoadRequest => "grop.LoadRequest",
+            Channel::OperatorEnable => "grop.OperatorEnable",
         }
     }
 
@@ -166,6 +171,10 @@ impl Channel {
                     "request_id": int, "stamp_ns": int, "plan_id": int, "step_index": int,
                     "object_mask": int, "station_m": nums(2)
                 }),
+            ),
+            Channel::OperatorEnable => (
+                "The operator's enable (arms the robot; releases a latched stop)",
+                json!({"seq": int, "stamp_ns": int}),
             ),
             Channel::BasePose => (
                 "A localisation fix of the base",
@@ -695,6 +704,31 @@ pub fn decode_health(data: &[u8]) -> Result<HeartbeatMsg, DecodeError> {
         role: j.role,
         pid: 0,
         overruns: j.overruns,
+    })
+}
+
+#[derive(Serialize, Deserialize)]
+struct EnableJson {
+    seq: u64,
+    stamp_ns: u64,
+}
+
+/// An operator's enable (without the process id, which differs run to run).
+pub fn encode_enable(m: &OperatorEnableMsg) -> Vec<u8> {
+    to_vec(&EnableJson {
+        seq: m.seq,
+        stamp_ns: m.stamp_ns,
+    })
+}
+
+/// A logged enable, back as the message (process id 0).
+pub fn decode_enable(data: &[u8]) -> Result<OperatorEnableMsg, DecodeError> {
+    let j: EnableJson = parse(Channel::OperatorEnable, data)?;
+    Ok(OperatorEnableMsg {
+        seq: j.seq,
+        stamp_ns: j.stamp_ns,
+        pid: 0,
+        reserved: 0,
     })
 }
 

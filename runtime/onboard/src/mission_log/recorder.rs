@@ -46,6 +46,7 @@ struct Subs {
     arm_io: TopicSubscriber<ArmIoMsg>,
     events: TopicSubscriber<EventMsg>,
     health: TopicSubscriber<HeartbeatMsg>,
+    enables: TopicSubscriber<grop_ipc::OperatorEnableMsg>,
 }
 
 /// A frame not (yet) logged.
@@ -94,6 +95,7 @@ impl Recorder {
                 arm_io: node.subscriber().map_err(port)?,
                 events: node.subscriber().map_err(port)?,
                 health: node.subscriber().map_err(port)?,
+                enables: node.subscriber().map_err(port)?,
             },
             bus,
             writer,
@@ -177,6 +179,15 @@ impl Recorder {
                     e,
                     |m| (m.stamp_ns, m.seq),
                     codec::encode_health,
+                ),
+            ),
+            (
+                Channel::OperatorEnable,
+                Self::take(
+                    &self.subs.enables,
+                    e,
+                    |m| (m.stamp_ns, m.seq),
+                    codec::encode_enable,
                 ),
             ),
             (

@@ -40,6 +40,8 @@ const EXECUTIVE_RANK: u32 = 20;
 const RECORDER_RANK: u32 = 90;
 /// The world's step (the live world steps every 2 ms).
 const STEP: Duration = Duration::from_millis(2);
+/// When a replay of a log from before the operator enable (format 1 and 2) gives it.
+const STAND_IN_ENABLE_AT: Duration = Duration::from_millis(10);
 /// Stages of feeding a recorded input.
 const DECODE: &str = "decoding a logged input";
 const PUBLISH: &str = "publishing a logged input";
@@ -164,7 +166,7 @@ pub struct ReplayOptions {
 /// Whether a logged message is something the two nodes made (compared) rather than an input.
 fn is_world_input(m: &LoggedMessage) -> bool {
     match m.channel {
-        Channel::CameraFrame | Channel::BasePose => true,
+        Channel::CameraFrame | Channel::BasePose | Channel::OperatorEnable => true,
         Channel::Health => codec::decode_health(&m.data)
             .is_ok_and(|h| h.role().is_ok_and(|r| r == ProcessRole::World)),
         Channel::Events => {
@@ -465,6 +467,12 @@ fn replay_in(
     let events = feeder
         .publisher::<grop_ipc::EventMsg>()
         .map_err(at(publishers))?;
+    let enables = feeder
+        .publisher::<grop_ipc::OperatorEnableMsg>()
+        .map_err(at(publishers))?;
+    // Logs before format 3 have no operator: their executive armed at start. Stand in for the
+    // operator once the executive runs (it takes only an enable given after its start).
+    let mut stand_in_enable = log.log_format < 3;
 
     let join = |name: &str, rank: u32| -> Result<Arc<dyn Clock>, ReplayError> {
         Ok(Arc::new(
@@ -579,10 +587,25 @@ fn replay_in(
                     Channel::Events => codec::decode_event(&m.data)
                         .map_err(at(DECODE))
                         .and_then(|e| events.publish(&e).map(|_| ()).map_err(at(PUBLISH))),
+                    Channel::OperatorEnable => codec::decode_enable(&m.data)
+                        .map_err(at(DECODE))
+                        .and_then(|e| enables.publish(&e).map(|_| ()).map_err(at(PUBLISH))),
                     _ => Ok(()),
                 };
                 if let Err(e) = published {
                     feed_error.get_or_insert(e);
+                }
+            }
+            if stand_in_enable && t >= STAND_IN_ENABLE_AT {
+                stand_in_enable = false;
+                let enable = grop_ipc::OperatorEnableMsg {
+                    seq: 1,
+                    stamp_ns: now,
+                    pid: 0,
+                    reserved: 0,
+                };
+                if let Err(e) = enables.publish(&enable) {
+                    feed_error.get_or_insert(at(PUBLISH)(e));
                 }
             }
             host.advance_to(t);

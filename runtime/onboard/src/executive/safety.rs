@@ -1,0 +1,379 @@
+//! The two classes of stop (docs/runtime.md, "Safety stops and holds"):
+//!
+//! - **safety stops latch**: the base ramps to zero, the arm stops, and nothing moves again
+//!   without the operator's enable (`operator/enable`) given after the stop. The start of the
+//!   executive itself is one (a restarted executive waits for an enable, it does not re-arm on
+//!   its own). Most of them end the mission (e-stops, protective stop, a lost link, a base fault
+//!   or mode drop, a dead planner, a stall); the UR safeguard stops (the "person nearby" input
+//!   of a light curtain or area scanner) pause it: once the arm's safety mode is normal again
+//!   and the operator enables, the leg or unload in progress starts over;
+//! - **operational holds** resume by themselves when their cause clears (collision monitor,
+//!   stale scan, no localisation, a localisation jump, waiting for a plan).
+//!
+//! This module classifies the UR controller's robot and safety modes.
+
+use std::time::Duration;
+
+use grop_ipc::EventKind;
+use motion_control::Twist;
+
+use super::cycle::{ArmCommand, CycleOutputs};
+use super::mission::{MissionCore, Parking, Phase};
+use super::unload::{ArmFault, UnloadFailure};
+use super::{AbortReason, ArmSnapshot, MissionState};
+
+/// UR `robot_mode` RUNNING (RTDE, dashboard `robotmode`).
+pub const ROBOT_MODE_RUNNING: i32 = 7;
+
+/// UR `safety_mode` codes (RTDE `safety_mode`; the dashboard's `safetystatus` names them).
+pub mod safety_mode {
+    /// Not reported (an arm device or an old log without it): the stop flags decide.
+    pub const UNREPORTED: i32 = 0;
+    /// NORMAL.
+    pub const NORMAL: i32 = 1;
+    /// REDUCED: the reduced safety limits are in force.
+    pub const REDUCED: i32 = 2;
+    /// PROTECTIVE_STOP.
+    pub const PROTECTIVE_STOP: i32 = 3;
+    /// RECOVERY: a joint outside its limits, to be moved back by hand.
+    pub const RECOVERY: i32 = 4;
+    /// SAFEGUARD_STOP: the safeguard input (light curtain, area scanner).
+    pub const SAFEGUARD_STOP: i32 = 5;
+    /// SYSTEM_EMERGENCY_STOP.
+    pub const SYSTEM_EMERGENCY_STOP: i32 = 6;
+    /// ROBOT_EMERGENCY_STOP.
+    pub const ROBOT_EMERGENCY_STOP: i32 = 7;
+    /// VIOLATION.
+    pub const VIOLATION: i32 = 8;
+    /// FAULT.
+    pub const FAULT: i32 = 9;
+    /// VALIDATE_JOINT_ID.
+    pub const VALIDATE_JOINT_ID: i32 = 10;
+    /// UNDEFINED_SAFETY_MODE.
+    pub const UNDEFINED: i32 = 11;
+    /// AUTOMATIC_MODE_SAFEGUARD_STOP.
+    pub const AUTOMATIC_MODE_SAFEGUARD_STOP: i32 = 12;
+    /// SYSTEM_THREE_POSITION_ENABLING_STOP.
+    pub const THREE_POSITION_ENABLING_STOP: i32 = 13;
+}
+
+/// What the arm's modes ask of the mission.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ArmVerdict {
+    /// Go on.
+    Normal,
+    /// A safeguard stop (or reduced mode where the deployment does not allow it): stop the base
+    /// and the arm, latch, go on after the mode is normal again and the operator enables.
+    Pause(i32),
+    /// A protective or emergency stop: the mission ends.
+    Stopped,
+    /// Any other safety mode than normal (recovery, violation, fault, ...), or a robot mode
+    /// other than running once the arm has run: the mission ends.
+    Unsafe {
+        /// The safety mode.
+        safety_mode: i32,
+        /// The robot mode.
+        robot_mode: i32,
+    },
+}
+
+/// Classifies an arm reading. `running_seen`: the arm has reported robot mode RUNNING before
+/// (until then, booting and powering modes are expected); `allow_reduced`: the deployment
+/// allows the reduced safety limits.
+pub fn classify(s: &ArmSnapshot, running_seen: bool, allow_reduced: bool) -> ArmVerdict {
+    use safety_mode as m;
+    if s.emergency_stop || s.protective_stop {
+        return ArmVerdict::Stopped;
+    }
+    let verdict = match s.safety_mode {
+        m::UNREPORTED | m::NORMAL => ArmVerdict::Normal,
+        m::REDUCED if allow_reduced => ArmVerdict::Normal,
+        m::REDUCED
+        | m::SAFEGUARD_STOP
+        | m::AUTOMATIC_MODE_SAFEGUARD_STOP
+        | m::THREE_POSITION_ENABLING_STOP => ArmVerdict::Pause(s.safety_mode),
+        m::PROTECTIVE_STOP | m::SYSTEM_EMERGENCY_STOP | m::ROBOT_EMERGENCY_STOP => {
+            ArmVerdict::Stopped
+        }
+        other => ArmVerdict::Unsafe {
+            safety_mode: other,
+            robot_mode: s.robot_mode,
+        },
+    };
+    if verdict == ArmVerdict::Normal && running_seen && s.robot_mode != ROBOT_MODE_RUNNING {
+        return ArmVerdict::Unsafe {
+            safety_mode: s.safety_mode,
+            robot_mode: s.robot_mode,
+        };
+    }
+    verdict
+}
+
+/// The name of a safety mode, for events.
+pub fn safety_mode_name(code: i32) -> &'static str {
+    use safety_mode as m;
+    match code {
+        m::UNREPORTED => "unreported",
+        m::NORMAL => "normal",
+        m::REDUCED => "reduced",
+        m::PROTECTIVE_STOP => "protective stop",
+        m::RECOVERY => "recovery",
+        m::SAFEGUARD_STOP => "safeguard stop",
+        m::SYSTEM_EMERGENCY_STOP => "system emergency stop",
+        m::ROBOT_EMERGENCY_STOP => "robot emergency stop",
+        m::VIOLATION => "violation",
+        m::FAULT => "fault",
+        m::VALIDATE_JOINT_ID => "validate joint id",
+        m::UNDEFINED => "undefined",
+        m::AUTOMATIC_MODE_SAFEGUARD_STOP => "automatic-mode safeguard stop",
+        m::THREE_POSITION_ENABLING_STOP => "three-position enabling stop",
+        _ => "unknown",
+    }
+}
+
+/// A latched safety stop that pauses the mission.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Latch {
+    /// The safety mode that latched it.
+    pub safety_mode: i32,
+    /// When it latched.
+    pub since: Duration,
+    /// Its cause has cleared (the arm is back in normal mode); an enable now releases it.
+    pub cleared: bool,
+}
+
+impl MissionCore {
+    /// Acts on what the arm's modes ask (docs/runtime.md, "Safety stops and holds").
+    pub(super) fn arm_verdict(
+        &mut self,
+        verdict: ArmVerdict,
+        now: Duration,
+        outputs: &mut CycleOutputs,
+    ) {
+        match verdict {
+            ArmVerdict::Normal => {
+                if let Some(latch) = self.latch
+                    && !latch.cleared
+                {
+                    self.latch = Some(Latch {
+                        cleared: true,
+                        ..latch
+                    });
+                    self.event(
+                        EventKind::Enable,
+                        now,
+                        format_args!(
+                            "the arm's safety mode is normal again after {}: waiting for the operator's enable",
+                            safety_mode_name(latch.safety_mode)
+                        ),
+                        outputs,
+                    );
+                }
+            }
+            ArmVerdict::Pause(code) => self.latch_pause(code, now, outputs),
+            ArmVerdict::Stopped => self.abort(AbortReason::ArmStopped, now, outputs),
+            ArmVerdict::Unsafe {
+                safety_mode,
+                robot_mode,
+            } => {
+                if !matches!(self.state, MissionState::Aborted(_)) {
+                    self.event(
+                        EventKind::ArmStopped,
+                        now,
+                        format_args!(
+                            "arm safety mode {safety_mode} ({}), robot mode {robot_mode}: the mission ends",
+                            safety_mode_name(safety_mode)
+                        ),
+                        outputs,
+                    );
+                }
+                self.abort(AbortReason::ArmUnsafe, now, outputs)
+            }
+        }
+    }
+
+    /// A safeguard stop: the base to zero, the arm stopped, the mission paused until the mode
+    /// is normal again and the operator enables.
+    fn latch_pause(&mut self, code: i32, now: Duration, outputs: &mut CycleOutputs) {
+        if matches!(
+            self.state,
+            MissionState::Aborted(_) | MissionState::Finished
+        ) {
+            return;
+        }
+        self.velocity = Twist::ZERO;
+        outputs.velocity = Twist::ZERO;
+        match &mut self.latch {
+            Some(latch) => latch.cleared = false,
+            None => {
+                self.latch = Some(Latch {
+                    safety_mode: code,
+                    since: now,
+                    cleared: false,
+                });
+                outputs.arm = ArmCommand::Stop;
+                self.event(
+                    EventKind::ArmStopped,
+                    now,
+                    format_args!(
+                        "{} (safety mode {code}): base to zero, arm stopped; the mission goes on once it clears and the operator enables",
+                        safety_mode_name(code)
+                    ),
+                    outputs,
+                );
+            }
+        }
+    }
+
+    /// The operator's enable: arms the base at start; releases a paused mission whose cause
+    /// has cleared (the leg or unload in progress starts over).
+    pub(super) fn operator_enable(&mut self, now: Duration, outputs: &mut CycleOutputs) {
+        if matches!(
+            self.state,
+            MissionState::Aborted(_) | MissionState::Finished
+        ) {
+            return;
+        }
+        if !self.enabled {
+            self.enabled = true;
+            self.event(
+                EventKind::Enable,
+                now,
+                format_args!("operator enable taken: arming the base"),
+                outputs,
+            );
+            return;
+        }
+        let Some(latch) = self.latch else { return };
+        if !latch.cleared {
+            self.event(
+                EventKind::Enable,
+                now,
+                format_args!(
+                    "operator enable refused: {} still in force",
+                    safety_mode_name(latch.safety_mode)
+                ),
+                outputs,
+            );
+            return;
+        }
+        self.latch = None;
+        match self.phase.take() {
+            Some(Phase::Unloading | Phase::PlanningArm { .. }) => {
+                // The arm stopped mid-unload: the unload counts as failed and is planned
+                // again (GROP+ retries it).
+                self.unload = None;
+                if let Some(step) = self.current_step() {
+                    self.finish_failed_unload(
+                        &step,
+                        now,
+                        UnloadFailure::Arm(ArmFault::SkillFailed),
+                        outputs,
+                    );
+                }
+            }
+            // Nothing moved in these: they go on.
+            Some(phase @ (Phase::Loading { .. } | Phase::AwaitTableFix { .. })) => {
+                self.phase = Some(phase)
+            }
+            // A leg starts over from where the base stands.
+            _ => {}
+        }
+        if matches!(self.parking, Parking::Moving { .. }) {
+            self.parking = Parking::NotStarted;
+        }
+        self.stall_since = None;
+        self.monitor_hold_since = None;
+        self.event(
+            EventKind::Enable,
+            now,
+            format_args!(
+                "operator enable taken after {} ({:.1} s): the mission goes on",
+                safety_mode_name(latch.safety_mode),
+                now.saturating_sub(latch.since).as_secs_f64()
+            ),
+            outputs,
+        );
+    }
+
+    /// The latched safety stop pausing the mission, if one is.
+    pub fn latch(&self) -> Option<Latch> {
+        self.latch
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn snap(safety: i32, robot: i32) -> ArmSnapshot {
+        ArmSnapshot {
+            safety_mode: safety,
+            robot_mode: robot,
+            ..ArmSnapshot::default()
+        }
+    }
+
+    #[test]
+    fn every_safety_mode_but_normal_stops() {
+        use safety_mode as m;
+        for code in 0..=14 {
+            let v = classify(&snap(code, ROBOT_MODE_RUNNING), true, false);
+            let expected = match code {
+                m::UNREPORTED | m::NORMAL => ArmVerdict::Normal,
+                m::REDUCED
+                | m::SAFEGUARD_STOP
+                | m::AUTOMATIC_MODE_SAFEGUARD_STOP
+                | m::THREE_POSITION_ENABLING_STOP => ArmVerdict::Pause(code),
+                m::PROTECTIVE_STOP | m::SYSTEM_EMERGENCY_STOP | m::ROBOT_EMERGENCY_STOP => {
+                    ArmVerdict::Stopped
+                }
+                _ => ArmVerdict::Unsafe {
+                    safety_mode: code,
+                    robot_mode: ROBOT_MODE_RUNNING,
+                },
+            };
+            assert_eq!(
+                v,
+                expected,
+                "safety mode {code} ({})",
+                safety_mode_name(code)
+            );
+        }
+        assert_eq!(
+            classify(&snap(m::REDUCED, ROBOT_MODE_RUNNING), true, true),
+            ArmVerdict::Normal
+        );
+    }
+
+    #[test]
+    fn a_robot_mode_other_than_running_stops_once_the_arm_has_run() {
+        // Booting (2), power on (4), idle (5): expected before the arm first runs.
+        for mode in [2, 4, 5] {
+            assert_eq!(
+                classify(&snap(safety_mode::NORMAL, mode), false, true),
+                ArmVerdict::Normal
+            );
+        }
+        // Power off (3), idle (5), backdrive (6) after it ran: the mission ends.
+        for mode in [3, 5, 6] {
+            assert_eq!(
+                classify(&snap(safety_mode::NORMAL, mode), true, true),
+                ArmVerdict::Unsafe {
+                    safety_mode: safety_mode::NORMAL,
+                    robot_mode: mode
+                }
+            );
+        }
+    }
+
+    #[test]
+    fn the_stop_flags_stop_whatever_the_mode_says() {
+        let mut s = snap(safety_mode::NORMAL, ROBOT_MODE_RUNNING);
+        s.protective_stop = true;
+        assert_eq!(classify(&s, true, true), ArmVerdict::Stopped);
+        let mut s = snap(safety_mode::UNREPORTED, 0);
+        s.emergency_stop = true;
+        assert_eq!(classify(&s, false, true), ArmVerdict::Stopped);
+    }
+}
