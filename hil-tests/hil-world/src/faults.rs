@@ -60,6 +60,9 @@ pub enum FaultKind {
     ProtectiveStop,
     /// An emergency stop while the arm moves.
     EmergencyStop,
+    /// The arm's safeguard input opens for 2 s while the base drives (a person near the
+    /// robot: UR safety mode 5), then closes again; the operator enables 1 s later.
+    SafeguardStop,
     /// The gripper reports a fault.
     GripperFault,
     /// The gripper stops answering (connection open).
@@ -81,7 +84,7 @@ pub enum FaultKind {
 
 impl FaultKind {
     /// Every kind, in the order of docs/reliability.md.
-    pub const ALL: [FaultKind; 21] = [
+    pub const ALL: [FaultKind; 22] = [
         FaultKind::CanLossBurst,
         FaultKind::CanLossRandom,
         FaultKind::CanDuplicate,
@@ -103,6 +106,7 @@ impl FaultKind {
         FaultKind::ClockJump,
         FaultKind::LocalisationJump,
         FaultKind::CameraNarrow,
+        FaultKind::SafeguardStop,
     ];
 
     /// The command-line name (`can-loss-burst`).
@@ -129,6 +133,7 @@ impl FaultKind {
             FaultKind::ClockJump => "clock-jump",
             FaultKind::LocalisationJump => "localisation-jump",
             FaultKind::CameraNarrow => "camera-narrow",
+            FaultKind::SafeguardStop => "safeguard-stop",
         }
     }
 

@@ -93,6 +93,9 @@ pub struct WorldConfig {
     /// start, and after a latched safety stop whose cause cleared) it gives it this much later
     /// on `operator/enable`. `None`: it never does (the executive then never arms).
     pub operator_delay: Option<Duration>,
+    /// When the executive asks again after a latched stop cleared (a safeguard stop), the
+    /// operator looks before enabling: this long.
+    pub operator_resume_delay: Duration,
 }
 
 impl WorldConfig {
@@ -126,6 +129,7 @@ impl WorldConfig {
             fault: None,
             lidar: true,
             operator_delay: Some(Duration::from_millis(100)),
+            operator_resume_delay: Duration::from_secs(1),
         }
     }
 }
@@ -706,9 +710,7 @@ impl World {
                     pid: std::process::id(),
                     reserved: 0,
                 });
-                if cfg.progress_every.is_some() {
-                    println!("[{:7.2} s] operator: enable", secs(now));
-                }
+                self.world_event(grop_ipc::EventKind::Enable, now, "operator: enable given");
             }
 
             // Camera.
@@ -805,7 +807,10 @@ impl World {
                 if kind == Ok(grop_ipc::EventKind::Enable)
                     && detail.contains("waiting for the operator's enable")
                 {
-                    enable_due = cfg.operator_delay.map(|d| now + d);
+                    let resume = detail.contains("normal again");
+                    enable_due = cfg
+                        .operator_delay
+                        .map(|d| now + if resume { cfg.operator_resume_delay } else { d });
                 }
                 if kind == Ok(grop_ipc::EventKind::ReplanRequested) && first_request.is_none() {
                     first_request = Some(ns_to_s(ev.stamp_ns));
@@ -1034,6 +1039,10 @@ impl World {
                 FaultKind::RtdeSilent => links.rtde_muted.store(true, Relaxed),
                 FaultKind::ProtectiveStop => self.arm.trigger_protective_stop("fault injection"),
                 FaultKind::EmergencyStop => self.arm.trigger_emergency_stop("fault injection"),
+                FaultKind::SafeguardStop => {
+                    self.arm.set_safeguard_stop(true, "fault injection");
+                    inj.safeguard_until = Some(now + SAFEGUARD_OPEN);
+                }
                 // Overcurrent (Robotiq FLT 0x0E): a major fault, fingers stop.
                 FaultKind::GripperFault => self.arm.trigger_gripper_fault(0x0e),
                 FaultKind::GripperTimeout => links.gripper_muted.store(true, Relaxed),
@@ -1046,6 +1055,10 @@ impl World {
                 FaultKind::LocalisationJump => inj.fix_jump = true,
                 FaultKind::CameraNarrow => inj.camera_narrow = true,
             }
+        }
+        if inj.safeguard_until.is_some_and(|until| now >= until) {
+            inj.safeguard_until = None;
+            self.arm.set_safeguard_stop(false, "fault injection over");
         }
         if inj.burst_until.is_some_and(|until| now >= until) {
             inj.burst_until = None;
@@ -1078,6 +1091,9 @@ impl World {
     }
 }
 
+/// How long the safeguard input stays open (`safeguard-stop`).
+const SAFEGUARD_OPEN: Duration = Duration::from_secs(2);
+
 /// The fault injector's state over a mission.
 #[derive(Default)]
 struct Injector {
@@ -1095,6 +1111,8 @@ struct Injector {
     camera_corrupt_until: Option<Duration>,
     /// The camera's frames cover only the west quarter of the room's frame.
     camera_narrow: bool,
+    /// The safeguard input is open until then.
+    safeguard_until: Option<Duration>,
     fix_jump: bool,
     jump: Option<()>,
 }

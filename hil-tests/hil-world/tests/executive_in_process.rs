@@ -511,6 +511,42 @@ fn a_silent_base_aborts_and_commands_zero() {
     assert!(h.seen.contains(&EventKind::MissionAborted));
 }
 
+/// A restart is not an enable: the enable the topic keeps for late joiners was given before
+/// this executive started, and it is refused; only a fresh one arms the base.
+#[test]
+fn an_enable_given_before_the_executive_started_does_not_arm_it() {
+    let mut h = Harness::new("old-enable");
+    h.enabled = true;
+    // The operator enabled an earlier executive at 0.5 s; this one starts at 1 s.
+    h.enable
+        .publish(&grop_ipc::OperatorEnableMsg {
+            seq: 1,
+            stamp_ns: 500_000_000,
+            pid: std::process::id(),
+            reserved: 0,
+        })
+        .unwrap();
+    h.now = Duration::from_secs(1);
+    h.run_until(Duration::from_secs(3), false, |_| false);
+    assert_eq!(h.exec.state(), MissionState::Starting, "{:?}", h.seen);
+    assert!(h.exec.enables_refused() >= 1);
+    assert!(
+        h.base.sim().state() != rmp_codec::v3::OperationalState::Tractor,
+        "the base was asked for tractor without an enable"
+    );
+    assert!(h.seen.contains(&EventKind::Enable), "{:?}", h.seen);
+    // A fresh enable arms it.
+    h.enable
+        .publish(&grop_ipc::OperatorEnableMsg {
+            seq: 2,
+            stamp_ns: h.now.as_nanos() as u64,
+            pid: std::process::id(),
+            reserved: 0,
+        })
+        .unwrap();
+    h.start_mission();
+}
+
 #[test]
 fn a_dead_planner_stops_the_base_within_its_deceleration_ramp() {
     let mut h = Harness::new("planner-dead");

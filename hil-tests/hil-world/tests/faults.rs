@@ -326,6 +326,65 @@ fn an_emergency_stop_aborts_the_mission() {
 }
 
 #[test]
+fn a_safeguard_stop_pauses_the_mission_and_nothing_moves_until_the_operator_enables() {
+    let (report, rec) = with_fault("f-safeguard", 4, "safeguard-stop");
+    let at = rec.injected_at_s.expect("injected");
+    // The base stops within the robot file's ramp (0.5 m/s^2 from at most 0.4 m/s), and the
+    // mission is paused, not ended.
+    base_stopped_within(&rec, 0.4 / 0.5 + 2.0 * BASE_PERIOD_S + SLACK_S);
+    let time_of = |kind: &str, text: &str| {
+        report
+            .events
+            .iter()
+            .find(|e| e.kind == kind && e.detail.contains(text) && e.t_s >= at)
+            .map(|e| e.t_s)
+            .unwrap_or_else(|| panic!("no {kind} \"{text}\" after the fault: {:#?}", report.events))
+    };
+    let stopped = time_of("ArmStopped", "safeguard stop");
+    let cleared = time_of("Enable", "normal again");
+    let enabled = time_of("Enable", "operator: enable given");
+    let resumed = time_of("Enable", "the mission goes on");
+    assert!(stopped - at < 0.05, "noticed {:.3} s after", stopped - at);
+    // The input was open 2 s; the operator enabled 1 s after the executive asked.
+    assert!(
+        (cleared - at - 2.0).abs() < 0.1,
+        "cleared at +{:.3} s",
+        cleared - at
+    );
+    assert!(
+        enabled - cleared >= 0.99,
+        "enabled {:.3} s after",
+        enabled - cleared
+    );
+    assert!(resumed >= enabled && resumed - enabled < 0.1);
+    // From the stop until the enable the base stood where it stopped (truth, every 0.2 s).
+    let settled = rec.base_stopped_at_s.expect("stopped");
+    let still: Vec<&[f64; 4]> = report
+        .trajectory
+        .iter()
+        .filter(|p| p[0] >= settled && p[0] <= enabled)
+        .collect();
+    assert!(still.len() >= 10, "{} samples while latched", still.len());
+    for p in &still {
+        let d = (p[1] - still[0][1]).hypot(p[2] - still[0][2]);
+        assert!(
+            d < 0.005,
+            "the base moved {d:.3} m at {:.2} s while latched",
+            p[0]
+        );
+    }
+    // After the enable it drives on, and the mission ends as planned.
+    let moved = report
+        .trajectory
+        .iter()
+        .filter(|p| p[0] > enabled)
+        .any(|p| (p[1] - still[0][1]).hypot(p[2] - still[0][2]) > 0.05);
+    assert!(moved, "the base never drove again after the enable");
+    assert_eq!(report.end, MissionEnd::Finished, "{:#?}", report.events);
+    assert!(events_of(&report, "MissionAborted").is_empty());
+}
+
+#[test]
 fn a_gripper_fault_fails_the_unload_and_the_mission_goes_on() {
     let (report, _rec) = with_fault("f-gripper-fault", 4, "gripper-fault");
     // The gripper client reads FLT != 0: the skill fails, the object is reported and the

@@ -282,6 +282,16 @@ impl Ur5eSim {
         &self.shared.link_faults
     }
 
+    /// Fault injection: the safeguard input opens (`open`) or closes again.
+    pub fn set_safeguard_stop(&self, open: bool, reason: &str) {
+        let robot = &mut lock(&self.shared.ctl).robot;
+        if open {
+            robot.safeguard_stop(reason);
+        } else {
+            robot.safeguard_release();
+        }
+    }
+
     /// Fault injection: an emergency stop (the red button on the teach pendant).
     pub fn trigger_emergency_stop(&self, reason: &str) {
         lock(&self.shared.ctl).robot.emergency_stop(reason);

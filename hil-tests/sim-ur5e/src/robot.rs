@@ -267,11 +267,12 @@ impl Snapshot {
         power | (running << 1)
     }
 
-    /// `safety_status_bits`: bit 0 normal, bit 2 protective stop, bits 6 and 7 robot
+    /// `safety_status_bits`: bit 0 normal, bit 2 protective stop, bit 4 safeguard stop, bits 6 and 7 robot
     /// emergency stop / emergency stopped.
     pub fn safety_status_bits(&self) -> u32 {
         match self.safety_mode {
             3 => 1 << 2,
+            5 => 1 << 4,
             7 => (1 << 6) | (1 << 7),
             _ => 1,
         }
@@ -587,6 +588,30 @@ impl RobotModel {
         self.motion = Motion::Stop {
             decel: PROTECTIVE_STOP_DECEL_RADPS2,
         };
+    }
+
+    /// Safeguard stop (the safeguard input opened: a light curtain or an area scanner sees a
+    /// person): the program stops and the arm brakes as in a protective stop; motion is
+    /// refused while the input is open.
+    pub fn safeguard_stop(&mut self, reason: &str) {
+        if self.safety_mode == 5 {
+            return;
+        }
+        self.log(1, format!("safeguard stop: {reason}"));
+        self.running = None;
+        self.watchdog = None;
+        self.safety_mode = 5;
+        self.motion = Motion::Stop {
+            decel: PROTECTIVE_STOP_DECEL_RADPS2,
+        };
+    }
+
+    /// The safeguard input closed again (automatic reset): normal mode.
+    pub fn safeguard_release(&mut self) {
+        if self.safety_mode == 5 {
+            self.safety_mode = 1;
+            self.log(3, "safeguard stop released".into());
+        }
     }
 
     /// Dashboard `unlock protective stop`.

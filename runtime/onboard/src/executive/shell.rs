@@ -128,7 +128,7 @@ pub struct Executive<D: BaseDevice, A: ArmDevice> {
     /// An operator's enable given after the start came in this base cycle.
     operator_enable: bool,
     /// Enables refused (given before this executive started, or stamped in the future).
-    pub(super) enables_refused: u64,
+    enables_refused: u64,
 }
 
 /// The range sensor, the collision monitor and its buffers.
@@ -315,6 +315,12 @@ impl<D: BaseDevice, A: ArmDevice> Executive<D, A> {
     /// The mission state.
     pub fn state(&self) -> MissionState {
         self.core.state()
+    }
+
+    /// Operator enables refused: given before this executive started, or stamped in the
+    /// future.
+    pub fn enables_refused(&self) -> u64 {
+        self.enables_refused
     }
 
     /// Counters.
