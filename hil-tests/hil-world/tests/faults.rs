@@ -351,7 +351,7 @@ fn a_safeguard_stop_pauses_the_mission_and_nothing_moves_until_the_operator_enab
             .map(|e| e.t_s)
             .unwrap_or_else(|| panic!("no {kind} \"{text}\" after the fault: {:#?}", report.events))
     };
-    let stopped = time_of("ArmStopped", "safeguard stop");
+    let stopped = time_of("ArmStopped", "SAFEGUARD_STOP");
     let cleared = time_of("Enable", "normal again");
     let enabled = time_of("Enable", "operator: enable given");
     let resumed = time_of("Enable", "the mission goes on");

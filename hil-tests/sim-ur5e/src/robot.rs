@@ -563,13 +563,18 @@ impl RobotModel {
 
     /// Protective stop: the program stops, the arm brakes hard, motion is refused until unlock.
     pub fn protective_stop(&mut self, reason: &str) {
-        if self.safety_mode == 3 {
+        self.safety_stop(3, "protective stop", reason);
+    }
+
+    /// Enters safety mode `mode`: the program stops, the arm brakes hard.
+    fn safety_stop(&mut self, mode: i32, what: &str, reason: &str) {
+        if self.safety_mode == mode {
             return;
         }
-        self.log(1, format!("protective stop: {reason}"));
+        self.log(1, format!("{what}: {reason}"));
         self.running = None;
         self.watchdog = None;
-        self.safety_mode = 3;
+        self.safety_mode = mode;
         self.motion = Motion::Stop {
             decel: PROTECTIVE_STOP_DECEL_RADPS2,
         };
@@ -578,32 +583,14 @@ impl RobotModel {
     /// Emergency stop (category 1: brake hard, then power off the joints): the program stops,
     /// motion is refused until the stop is released and the arm powered on again.
     pub fn emergency_stop(&mut self, reason: &str) {
-        if self.safety_mode == 7 {
-            return;
-        }
-        self.log(1, format!("emergency stop: {reason}"));
-        self.running = None;
-        self.watchdog = None;
-        self.safety_mode = 7;
-        self.motion = Motion::Stop {
-            decel: PROTECTIVE_STOP_DECEL_RADPS2,
-        };
+        self.safety_stop(7, "emergency stop", reason);
     }
 
     /// Safeguard stop (the safeguard input opened: a light curtain or an area scanner sees a
     /// person): the program stops and the arm brakes as in a protective stop; motion is
     /// refused while the input is open.
     pub fn safeguard_stop(&mut self, reason: &str) {
-        if self.safety_mode == 5 {
-            return;
-        }
-        self.log(1, format!("safeguard stop: {reason}"));
-        self.running = None;
-        self.watchdog = None;
-        self.safety_mode = 5;
-        self.motion = Motion::Stop {
-            decel: PROTECTIVE_STOP_DECEL_RADPS2,
-        };
+        self.safety_stop(5, "safeguard stop", reason);
     }
 
     /// The safeguard input closed again (automatic reset): normal mode.

@@ -88,7 +88,7 @@ pub struct ArmSnapshot {
     pub protective_stop: bool,
     /// Emergency stop.
     pub emergency_stop: bool,
-    /// UR `safety_mode` (1 normal; [`safety::safety_mode`]; 0: not reported).
+    /// UR `safety_mode` (`ur5e::dashboard::SafetyMode` codes, 1 normal; 0: not reported).
     pub safety_mode: i32,
 }
 

@@ -21,41 +21,10 @@ use super::cycle::{ArmCommand, CycleOutputs};
 use super::mission::{MissionCore, Parking, Phase};
 use super::unload::{ArmFault, UnloadFailure};
 use super::{AbortReason, ArmSnapshot, MissionState};
+use ur5e::dashboard::SafetyMode;
 
 /// UR `robot_mode` RUNNING (RTDE, dashboard `robotmode`).
 pub const ROBOT_MODE_RUNNING: i32 = 7;
-
-/// UR `safety_mode` codes (RTDE `safety_mode`; the dashboard's `safetystatus` names them).
-pub mod safety_mode {
-    /// Not reported (an arm device or an old log without it): the stop flags decide.
-    pub const UNREPORTED: i32 = 0;
-    /// NORMAL.
-    pub const NORMAL: i32 = 1;
-    /// REDUCED: the reduced safety limits are in force.
-    pub const REDUCED: i32 = 2;
-    /// PROTECTIVE_STOP.
-    pub const PROTECTIVE_STOP: i32 = 3;
-    /// RECOVERY: a joint outside its limits, to be moved back by hand.
-    pub const RECOVERY: i32 = 4;
-    /// SAFEGUARD_STOP: the safeguard input (light curtain, area scanner).
-    pub const SAFEGUARD_STOP: i32 = 5;
-    /// SYSTEM_EMERGENCY_STOP.
-    pub const SYSTEM_EMERGENCY_STOP: i32 = 6;
-    /// ROBOT_EMERGENCY_STOP.
-    pub const ROBOT_EMERGENCY_STOP: i32 = 7;
-    /// VIOLATION.
-    pub const VIOLATION: i32 = 8;
-    /// FAULT.
-    pub const FAULT: i32 = 9;
-    /// VALIDATE_JOINT_ID.
-    pub const VALIDATE_JOINT_ID: i32 = 10;
-    /// UNDEFINED_SAFETY_MODE.
-    pub const UNDEFINED: i32 = 11;
-    /// AUTOMATIC_MODE_SAFEGUARD_STOP.
-    pub const AUTOMATIC_MODE_SAFEGUARD_STOP: i32 = 12;
-    /// SYSTEM_THREE_POSITION_ENABLING_STOP.
-    pub const THREE_POSITION_ENABLING_STOP: i32 = 13;
-}
 
 /// What the arm's modes ask of the mission.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -81,22 +50,27 @@ pub enum ArmVerdict {
 /// (until then, booting and powering modes are expected); `allow_reduced`: the deployment
 /// allows the reduced safety limits.
 pub fn classify(s: &ArmSnapshot, running_seen: bool, allow_reduced: bool) -> ArmVerdict {
-    use safety_mode as m;
+    use SafetyMode as M;
     if s.emergency_stop || s.protective_stop {
         return ArmVerdict::Stopped;
     }
-    let verdict = match s.safety_mode {
-        m::UNREPORTED | m::NORMAL => ArmVerdict::Normal,
-        m::REDUCED if allow_reduced => ArmVerdict::Normal,
-        m::REDUCED
-        | m::SAFEGUARD_STOP
-        | m::AUTOMATIC_MODE_SAFEGUARD_STOP
-        | m::THREE_POSITION_ENABLING_STOP => ArmVerdict::Pause(s.safety_mode),
-        m::PROTECTIVE_STOP | m::SYSTEM_EMERGENCY_STOP | m::ROBOT_EMERGENCY_STOP => {
+    let verdict = match SafetyMode::from_code(s.safety_mode) {
+        // 0: not reported (an arm device or an old log without it): the stop flags decided.
+        None if s.safety_mode == 0 => ArmVerdict::Normal,
+        Some(M::Normal) => ArmVerdict::Normal,
+        Some(M::Reduced) if allow_reduced => ArmVerdict::Normal,
+        Some(
+            M::Reduced
+            | M::SafeguardStop
+            | M::AutomaticModeSafeguardStop
+            | M::SystemThreePositionEnablingStop,
+        ) => ArmVerdict::Pause(s.safety_mode),
+        Some(M::ProtectiveStop | M::SystemEmergencyStop | M::RobotEmergencyStop) => {
             ArmVerdict::Stopped
         }
-        other => ArmVerdict::Unsafe {
-            safety_mode: other,
+        // Recovery, violation, fault, validate joint id, undefined, and codes UR does not have.
+        _ => ArmVerdict::Unsafe {
+            safety_mode: s.safety_mode,
             robot_mode: s.robot_mode,
         },
     };
@@ -109,25 +83,12 @@ pub fn classify(s: &ArmSnapshot, running_seen: bool, allow_reduced: bool) -> Arm
     verdict
 }
 
-/// The name of a safety mode, for events.
+/// The name of a safety mode, for events (the dashboard's `safetystatus` name).
 pub fn safety_mode_name(code: i32) -> &'static str {
-    use safety_mode as m;
-    match code {
-        m::UNREPORTED => "unreported",
-        m::NORMAL => "normal",
-        m::REDUCED => "reduced",
-        m::PROTECTIVE_STOP => "protective stop",
-        m::RECOVERY => "recovery",
-        m::SAFEGUARD_STOP => "safeguard stop",
-        m::SYSTEM_EMERGENCY_STOP => "system emergency stop",
-        m::ROBOT_EMERGENCY_STOP => "robot emergency stop",
-        m::VIOLATION => "violation",
-        m::FAULT => "fault",
-        m::VALIDATE_JOINT_ID => "validate joint id",
-        m::UNDEFINED => "undefined",
-        m::AUTOMATIC_MODE_SAFEGUARD_STOP => "automatic-mode safeguard stop",
-        m::THREE_POSITION_ENABLING_STOP => "three-position enabling stop",
-        _ => "unknown",
+    match SafetyMode::from_code(code) {
+        Some(m) => m.name(),
+        None if code == 0 => "unreported",
+        None => "unknown",
     }
 }
 
@@ -316,18 +277,12 @@ mod tests {
 
     #[test]
     fn every_safety_mode_but_normal_stops() {
-        use safety_mode as m;
         for code in 0..=14 {
             let v = classify(&snap(code, ROBOT_MODE_RUNNING), true, false);
             let expected = match code {
-                m::UNREPORTED | m::NORMAL => ArmVerdict::Normal,
-                m::REDUCED
-                | m::SAFEGUARD_STOP
-                | m::AUTOMATIC_MODE_SAFEGUARD_STOP
-                | m::THREE_POSITION_ENABLING_STOP => ArmVerdict::Pause(code),
-                m::PROTECTIVE_STOP | m::SYSTEM_EMERGENCY_STOP | m::ROBOT_EMERGENCY_STOP => {
-                    ArmVerdict::Stopped
-                }
+                0 | 1 => ArmVerdict::Normal,
+                2 | 5 | 12 | 13 => ArmVerdict::Pause(code),
+                3 | 6 | 7 => ArmVerdict::Stopped,
                 _ => ArmVerdict::Unsafe {
                     safety_mode: code,
                     robot_mode: ROBOT_MODE_RUNNING,
@@ -341,8 +296,9 @@ mod tests {
             );
         }
         assert_eq!(
-            classify(&snap(m::REDUCED, ROBOT_MODE_RUNNING), true, true),
-            ArmVerdict::Normal
+            classify(&snap(2, ROBOT_MODE_RUNNING), true, true),
+            ArmVerdict::Normal,
+            "reduced mode where the deployment allows it"
         );
     }
 
@@ -350,17 +306,14 @@ mod tests {
     fn a_robot_mode_other_than_running_stops_once_the_arm_has_run() {
         // Booting (2), power on (4), idle (5): expected before the arm first runs.
         for mode in [2, 4, 5] {
-            assert_eq!(
-                classify(&snap(safety_mode::NORMAL, mode), false, true),
-                ArmVerdict::Normal
-            );
+            assert_eq!(classify(&snap(1, mode), false, true), ArmVerdict::Normal);
         }
         // Power off (3), idle (5), backdrive (6) after it ran: the mission ends.
         for mode in [3, 5, 6] {
             assert_eq!(
-                classify(&snap(safety_mode::NORMAL, mode), true, true),
+                classify(&snap(1, mode), true, true),
                 ArmVerdict::Unsafe {
-                    safety_mode: safety_mode::NORMAL,
+                    safety_mode: 1,
                     robot_mode: mode
                 }
             );
@@ -369,10 +322,10 @@ mod tests {
 
     #[test]
     fn the_stop_flags_stop_whatever_the_mode_says() {
-        let mut s = snap(safety_mode::NORMAL, ROBOT_MODE_RUNNING);
+        let mut s = snap(1, ROBOT_MODE_RUNNING);
         s.protective_stop = true;
         assert_eq!(classify(&s, true, true), ArmVerdict::Stopped);
-        let mut s = snap(safety_mode::UNREPORTED, 0);
+        let mut s = snap(0, 0);
         s.emergency_stop = true;
         assert_eq!(classify(&s, false, true), ArmVerdict::Stopped);
     }
