@@ -536,3 +536,54 @@ fn hil_runs_a_folder_of_scene_files_one_mission_each_and_names_a_bad_folder() {
     assert!(!o.status.success());
     assert!(text(&o).contains("unknown suite \"nope\""), "{}", text(&o));
 }
+
+#[test]
+fn enable_gives_the_operators_enable_and_names_what_it_refuses() {
+    let o = grop(&["enable", "--deployment", "/nonexistent/deployment.toml"]);
+    assert!(!o.status.success());
+    assert!(
+        text(&o).contains("/nonexistent/deployment.toml"),
+        "{}",
+        text(&o)
+    );
+    // A HIL deployment runs on the simulated clock: the world is the operator there.
+    let hil =
+        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../fuzz-replay/data/hil-deployment.toml");
+    let o = grop(&["enable", "--deployment", hil.to_str().unwrap()]);
+    assert!(!o.status.success());
+    assert!(
+        text(&o).contains("world plays the operator"),
+        "{}",
+        text(&o)
+    );
+    // On the wall clock: one enable on <ns>/operator/enable, stamped now.
+    let dir = tempfile::tempdir().unwrap();
+    let namespace = format!("grop-cli-enable-{}", std::process::id());
+    let deployment = dir.path().join("deployment.toml");
+    let text_in = std::fs::read_to_string(&hil)
+        .unwrap()
+        .replace("grop-m-4242-1\"", &format!("{namespace}\""))
+        .replace("sim:grop-m-4242-1-clock", "wall");
+    std::fs::write(&deployment, text_in).unwrap();
+    let node = grop_ipc::IpcNode::new(&namespace, "cli-test").unwrap();
+    let enables = node.subscriber::<grop_ipc::OperatorEnableMsg>().unwrap();
+    // Read while it holds the enable (a sample lives as long as its publisher).
+    let mut child = Command::new(env!("CARGO_BIN_EXE_grop"))
+        .args(["enable", "--deployment", deployment.to_str().unwrap()])
+        .args(["--hold-s", "2", "--log", "warn"])
+        .stdout(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut got = None;
+    let until = std::time::Instant::now() + std::time::Duration::from_secs(10);
+    while got.is_none() && std::time::Instant::now() < until {
+        got = enables.try_recv().unwrap().map(|m| *m);
+        std::thread::sleep(std::time::Duration::from_millis(10));
+    }
+    let o = child.wait_with_output().unwrap();
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(text(&o).contains("operator/enable"), "{}", text(&o));
+    let got = got.expect("the enable arrived");
+    assert_eq!(got.seq, 1);
+    assert!(got.stamp_ns > 0);
+}
