@@ -568,7 +568,7 @@ fn enable_gives_the_operators_enable_and_names_what_it_refuses() {
     let node = grop_ipc::IpcNode::new(&namespace, "cli-test").unwrap();
     let enables = node.subscriber::<grop_ipc::OperatorEnableMsg>().unwrap();
     // Read while it holds the enable (a sample lives as long as its publisher).
-    let mut child = Command::new(env!("CARGO_BIN_EXE_grop"))
+    let child = Command::new(env!("CARGO_BIN_EXE_grop"))
         .args(["enable", "--deployment", deployment.to_str().unwrap()])
         .args(["--hold-s", "2", "--log", "warn"])
         .stdout(std::process::Stdio::piped())
