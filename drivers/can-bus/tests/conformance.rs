@@ -1,6 +1,7 @@
 //! The conformance suite against every backend: MemoryBus, VirtualCanBus within one process,
 //! SocketCanBus on vcan0 (skipped, and saying so, where it does not exist). Across two processes
 //! (with the `vcan echo` peer) in `drivers/vcan-tool/tests/cross_process.rs`.
+#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failure panics with its message
 
 use std::io::Write;
 use std::sync::atomic::{AtomicU32, Ordering};

@@ -1,5 +1,6 @@
 //! Virtual-bus behaviour beyond the common conformance suite: slow readers, several senders,
 //! refused joins. Crashed nodes and the `vcan` tool: `drivers/vcan-tool/tests/cross_process.rs`.
+#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failure panics with its message
 
 use std::sync::atomic::{AtomicU32, Ordering};
 

@@ -1,4 +1,5 @@
 //! The simulated clock across participants: lock-step order, pace, crash detection, loss.
+#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failure panics with its message
 
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};

@@ -1,6 +1,7 @@
 //! Driver behaviour against a scripted base on the in-memory bus, on a simulated clock:
 //! start-up configuration, modes, limits and normalisation, the input watchdog, base silence,
 //! unreadable feedback and faults.
+#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failure panics with its message
 
 use std::time::Duration;
 

@@ -1,6 +1,7 @@
 //! The dashboard and gripper clients (one ASCII line per request, one per reply) against
 //! scripted servers that answer slowly: a deadline holds per reply, not per read, and a reply
 //! that comes after its deadline is never taken as the answer to the next request.
+#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failure panics with its message
 
 use std::io::{BufRead, BufReader, Write};
 use std::net::{TcpListener, TcpStream};

@@ -1,5 +1,6 @@
 //! The RTDE client against a scripted controller written byte by byte here (independent of
 //! the simulator's encoder, so a shared codec bug cannot hide).
+#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failure panics with its message
 
 use std::io::{Read, Write};
 use std::net::{TcpListener, TcpStream};

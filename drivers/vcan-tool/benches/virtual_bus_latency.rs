@@ -9,6 +9,7 @@
 //! criterion reports means and medians; p50/p99/max of every measured frame are printed at the
 //! end, as a bus latency table wants them. Run: `cargo bench -p vcan-tool` (here beside the `vcan`
 //! binary, which the two-process round trip spawns).
+#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failure panics with its message
 
 use std::process::{Command, Stdio};
 use std::sync::mpsc;

@@ -1,6 +1,7 @@
 //! The virtual CAN bus across processes, with the `vcan` binary of this crate as the other
 //! process: the conformance suite against its echo peer, a SIGKILLed node's slot reclaimed, and
 //! `vcan send` / `vcan dump` in candump notation.
+#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failure panics with its message
 
 use std::io::{BufRead, BufReader};
 use std::process::{Command, Stdio};

@@ -2,6 +2,7 @@
 //! (`cargo build -p motion-control --target thumbv7em-none-eabihf` once that target is installed,
 //! see docs/rmp.md). Without the target on this machine, check the source instead: the crate
 //! root declares `#![no_std]` and nothing outside `#[cfg(test)]` names std.
+#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failure panics with its message
 
 use std::path::Path;
 

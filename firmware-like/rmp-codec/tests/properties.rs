@@ -1,5 +1,6 @@
 //! Properties: decoding arbitrary bytes never panics and only yields values the encoder could
 //! have produced; encode/decode round trips.
+#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failure panics with its message
 
 use proptest::prelude::*;
 use rmp_codec::RawFrame;

@@ -1,6 +1,7 @@
 //! GROP+ in the evaluation: with every lever off it executes exactly as GROP (same plans, same
 //! noise, same records); with retries, a retried step lists one outcome per attempt, only failed
 //! attempts are retried, the bound holds, and the run is reproducible.
+#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failure panics with its message
 
 use experiments::{EvalConfig, TaskRecord, Workload, evaluate_heatmaps, ground_truth, run};
 use planner::grop_plus::GropPlusConfig;

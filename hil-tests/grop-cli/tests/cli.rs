@@ -1,5 +1,6 @@
 //! End-to-end runs of the `grop` binary: every job on small settings, and clear errors on bad
 //! input (no panic, non-zero exit, the bad thing named).
+#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failure panics with its message
 
 use std::path::PathBuf;
 use std::process::{Command, Output};

@@ -4,6 +4,7 @@
 //!
 //! The binaries are the ones `cargo test --workspace` (or `cargo build`) put next to this test's
 //! folder.
+#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failure panics with its message
 
 use std::time::Duration;
 

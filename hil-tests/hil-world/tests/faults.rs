@@ -7,6 +7,7 @@
 //!
 //! The stop times printed by each test (`cargo test -p hil-world --test faults -- --nocapture`)
 //! are the figures in docs/reliability.md.
+#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failure panics with its message
 
 use std::time::Duration;
 

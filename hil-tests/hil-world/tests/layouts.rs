@@ -1,5 +1,6 @@
 //! The hand-made layout suite (`hil-tests/layouts/`, docs/hil.md): every file loads with the
 //! scene validation and says what it tests; three layouts run closed loop.
+#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failure panics with its message
 
 use hil_world::suite;
 

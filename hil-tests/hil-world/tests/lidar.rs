@@ -1,5 +1,6 @@
 //! The range sensor in the closed loop: the world's simulated VLP-16 feeds the executive's
 //! collision monitor over UDP, and the monitor keeps the base off what the map does not know.
+#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failure panics with its message
 
 use std::time::Duration;
 

@@ -5,6 +5,7 @@
 //! Criterion reports the mean and its confidence interval; p50 / p99 come from a separate pass
 //! of `PERCENTILE_SAMPLES` round trips printed at the end. Run with
 //! `cargo bench -p sim-rmp --bench can_round_trip`.
+#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failure panics with its message
 
 use std::io::{BufRead, BufReader};
 use std::process::{Child, Command, Stdio};

@@ -1,6 +1,7 @@
 //! The real driver against the simulated base on the in-memory bus, on a simulated clock:
 //! deterministic, no sleeping. Odometry against ground truth, the base's own loss-of-command
 //! ramp when the host dies, faults, the yaw sign, and determinism.
+#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failure panics with its message
 
 use std::time::Duration;
 

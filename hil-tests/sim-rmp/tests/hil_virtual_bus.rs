@@ -4,6 +4,7 @@
 //! Covers: mode change across processes, motion and odometry against the simulator's own
 //! ground truth, the driver watchdog bringing the base to rest when inputs go stale, the base
 //! going silent (driver error), and the simulator exiting when its controller goes away.
+#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failure panics with its message
 
 use std::io::{BufRead, BufReader, Write};
 use std::process::{Child, ChildStdin, Command, Stdio};

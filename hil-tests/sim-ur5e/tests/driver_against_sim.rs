@@ -1,5 +1,6 @@
 //! HIL: the `ur5e` drivers against the simulated controller on loopback TCP (free ports, so
 //! tests run in parallel).
+#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failure panics with its message
 
 use std::io::{Read, Write};
 use std::net::TcpStream;

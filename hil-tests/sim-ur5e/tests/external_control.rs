@@ -2,6 +2,7 @@
 //! Library's protocol (reverse, trajectory and script command sockets, the script sender),
 //! written from its documentation (module `sim_ur5e::external_control`), against the simulated
 //! controller in lock-step.
+#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failure panics with its message
 
 use std::io::{Read, Write};
 use std::net::{SocketAddr, TcpListener, TcpStream};

@@ -2,6 +2,7 @@
 //! that owns the clock, and the arm driven through its non-blocking skills (`update_at` +
 //! `poll`) on that simulated clock. Nothing here depends on how fast the machine is: the same
 //! mission takes the same number of steps, and every timeout fires on simulated time.
+#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failure panics with its message
 
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::thread;

@@ -2,6 +2,7 @@
 //! ur_rtde's protocol (its recipes, its command codes, its handshake on `output_int_register_0`)
 //! uploads a control script on the real-time port and runs moves; the same mission takes the
 //! same number of steps however fast the machine is.
+#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failure panics with its message
 
 use std::io::Write;
 use std::net::TcpStream;

@@ -1,4 +1,5 @@
 //! `datagen`: outputs, their consistency with the simulator, determinism across threads.
+#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failure panics with its message
 
 use std::io::{BufRead, BufReader};
 

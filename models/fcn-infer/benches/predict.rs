@@ -1,6 +1,7 @@
 //! Criterion benchmark of the committed model: one crop and a batch of six (both sides of three
 //! targets) on the calling thread. `cargo bench -p fcn-infer`. The p50/p99 table against
 //! onnxruntime comes from `models/bench/run_bench.py` (docs/fcn.md).
+#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failure panics with its message
 
 use std::path::Path;
 

@@ -4,6 +4,7 @@
 //! prints one JSON object (microseconds); the third argument picks how the convolutions run
 //! (`direct`, our operator, the default; `tract`, tract's own lowering); `models/bench/run_bench.py` runs it beside the
 //! onnxruntime harness and writes the side-by-side table into docs/fcn.md.
+#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failure panics with its message
 
 use std::path::PathBuf;
 use std::time::Instant;

@@ -3,6 +3,7 @@
 //! `cargo run --release -p fcn-infer --example profile_ops -- models/psi-fcn.onnx 1 2000 [direct|tract]`
 //! (model, batch size, iterations, how the convolutions run: our `DirectConv` operator, the
 //! default, or tract's own lowering). Used to choose the architecture (docs/fcn.md).
+#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failure panics with its message
 
 use std::collections::BTreeMap;
 use std::time::Instant;

@@ -440,7 +440,7 @@ impl Decoder {
         const K: usize = 8;
         let [c1, c2, c3] = self.stage_c;
         let span = |r: &Range<usize>, s: usize| r.start / s..(r.end - 1) / s + 1;
-        // SAFETY (every pointer below): stage `f_s` holds `c_s` planes of `H_s x W_s` and the
+        // SAFETY: for every pointer below: stage `f_s` holds `c_s` planes of `H_s x W_s` and the
         // cells visited lie inside the planes (the window is inside the crop); the score
         // weights hold `c_s x K`, the up-sampling weights `4 x K x K`, the biases `4 x K`,
         // `t3` and `s2` one `K` per cell of their stage, `out` and `out_bias` 32 x 64.

@@ -514,10 +514,10 @@ impl Job<'_> {
         let mut acc = [[[0.0f32; LANES]; N]; OB];
         #[cfg(target_arch = "x86_64")]
         if simd_available() {
+            let (buf, acc) = (self.buf, &mut acc);
             // SAFETY: AVX2 and FMA are present (checked at run time); the function checks its
             // own bounds. It stores the vectors whose 8 lanes are all inside the row itself.
             // The 3x3 and 1x1 tap loops get a constant trip count, so they unroll.
-            let (buf, acc) = (self.buf, &mut acc);
             unsafe {
                 match g.taps.len() {
                     9 => accumulate_avx2::<N, 9>(buf, weights, g, bases, acc, epilogue, dest, out),
@@ -820,9 +820,9 @@ impl DirectConv {
         );
         let (n, h, w) = (shape[0], shape[2], shape[3]);
         let input = inputs[0].try_as_plain_ram()?;
+        let [c, oh, ow] = self.output_chw(h, w)?;
         // SAFETY: f32 has no invalid bit patterns, and `run_with` writes every output element
         // (every channel, row and column) before anything reads it.
-        let [c, oh, ow] = self.output_chw(h, w)?;
         let mut out = unsafe { Tensor::uninitialized::<f32>(&[n, c, oh, ow])? };
         {
             let mut view = out.try_as_plain_ram_mut()?;

@@ -1,6 +1,7 @@
 //! Our direct convolution against tract's own: the committed model's outputs with and without
 //! the rewrite, and single convolutions of many shapes (strides, paddings, kernel sizes, widths
 //! that leave partial vectors, channel counts that leave partial register blocks) on random data.
+#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failure panics with its message
 
 use std::path::Path;
 

@@ -1,5 +1,6 @@
 //! Loading errors for missing, corrupt and wrongly shaped models; exact batching behaviour on a
 //! fixture whose heatmap is crop / 255; the committed model's basic contract.
+#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failure panics with its message
 
 use std::path::{Path, PathBuf};
 

@@ -1,5 +1,6 @@
 //! What `FcnModel::load` checks before it trusts a model file: its size (before reading it all)
 //! and the sha256 that the record beside it (`<model>.json`, written by training) names.
+#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failure panics with its message
 
 use std::path::{Path, PathBuf};
 

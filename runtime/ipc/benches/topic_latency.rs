@@ -2,6 +2,7 @@
 //! subscriber asleep in `recv_timeout` on another thread measures arrival. One message in
 //! flight. criterion reports means; p50/p99/max over every message are printed at the end.
 //! Run: `cargo bench -p grop-ipc`.
+#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failure panics with its message
 
 use std::sync::mpsc;
 use std::sync::{Arc, Mutex};

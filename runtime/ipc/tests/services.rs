@@ -1,4 +1,5 @@
 //! Every service through two iceoryx2 nodes: the publisher's and the subscriber's.
+#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failure panics with its message
 
 use std::sync::atomic::{AtomicU32, Ordering};
 use std::time::Duration;

@@ -3,6 +3,7 @@
 //! (`world::camera::cut_view`) against F from the crops `world::view::render_crop` draws directly
 //! (what `TaskProblem::from_world` feeds Psi). Prints the measured differences (run with
 //! `--nocapture`).
+#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failure panics with its message
 
 use grop_select::task_feasibility;
 use planner::feasibility::{FcnEvaluator, FeasibilityEvaluator, FeasibilityQuery};

@@ -6,6 +6,7 @@
 //! for version 2, written by the build before version 3 (commit 5cc3e9a9: no operator enable,
 //! no safety mode in `/arm/io`). They stay as they are; the reader and `grop replay` must keep
 //! reading them.
+#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failure panics with its message
 
 use std::path::{Path, PathBuf};
 

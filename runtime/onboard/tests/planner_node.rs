@@ -1,5 +1,6 @@
 //! The planner node in-process: a rendered camera frame and replan requests go in over iceoryx2
 //! (unique namespace per test), the task plan, heatmaps and heartbeats come out.
+#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failure panics with its message
 
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU32, AtomicU64, Ordering};

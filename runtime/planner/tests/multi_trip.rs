@@ -1,5 +1,6 @@
 //! The multi-trip optimiser against brute force over the whole plan family (small tasks, k < n),
 //! and its anytime bound against the exact optimum.
+#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failure panics with its message
 
 use planner::multi_trip::{
     TripSearchLimits, optimise_trips, trip_plan_cost_s, trip_plan_feasibility, trip_plans,

@@ -1,4 +1,5 @@
 //! The exact optimiser against enumeration, and PETLON against exhaustive cost-optimal search.
+#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failure panics with its message
 
 mod common;
 

@@ -1,4 +1,5 @@
 //! RRT-Connect joint paths: valid, collision-free between waypoints, deterministic per seed.
+#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failure panics with its message
 
 use nalgebra::{Point3, Vector3};
 use ur5e_kin::{

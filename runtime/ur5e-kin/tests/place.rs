@@ -1,4 +1,5 @@
 //! Placement: reach, tool-down tolerance, collision and failure classification.
+#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failure panics with its message
 
 use core::f64::consts::{FRAC_PI_2, PI};
 

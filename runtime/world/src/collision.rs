@@ -45,6 +45,7 @@ pub fn base_clearance(scene: &Scene, robot: &RobotConfig, base: BasePose) -> f64
     walls.min(furniture)
 }
 
+/// The base's footprint at `base` overlaps a wall, a table or a chair.
 pub fn base_collides(scene: &Scene, robot: &RobotConfig, base: BasePose) -> bool {
     if let BaseCollisionModel::ChairDiscs { radius_m } = robot.base_collision {
         let r2 = radius_m * radius_m;

@@ -1,5 +1,6 @@
 //! Scene and robot files: every bad-file case of issue 2 fails with an error naming the file
 //! and the field; good files round-trip.
+#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failure panics with its message
 
 use std::path::PathBuf;
 

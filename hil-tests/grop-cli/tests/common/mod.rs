@@ -1,4 +1,5 @@
 //! What the `grop` binary's end-to-end tests share.
+#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failure panics with its message
 
 use std::path::PathBuf;
 use std::process::{Command, Output};
