@@ -13,9 +13,10 @@ use iceoryx2::prelude::*;
 use iceoryx2::sample::Sample;
 use iceoryx2::service::port_factory::{event, publish_subscribe};
 
+use crate::admit::{AdmittingSubscriber, Sequenced};
 use crate::{CameraFrameHeader, CameraFrameMsg, MessageError, Topic};
 
-type Ipc = ipc_threadsafe::Service;
+pub(crate) type Ipc = ipc_threadsafe::Service;
 
 /// Longest accepted namespace.
 const MAX_NAMESPACE_LEN: usize = 100;
@@ -197,6 +198,15 @@ impl IpcNode {
                     ipc("opening the service", &error)
                 }
             })?;
+        // A topic with one writer must not have room for a second: a service another build or
+        // program created with more publisher slots is refused, not joined (docs/security.md).
+        let slots = frames.static_config().max_publishers();
+        if T::MAX_PUBLISHERS == 1 && slots != 1 {
+            return Err(PortError::Incompatible {
+                service: service.clone(),
+                detail: format!("it has room for {slots} publishers; this topic has one writer"),
+            });
+        }
         let wake_name = ServiceName::new(&format!("{service}/wake"))
             .map_err(|e| ipc("naming the wake-up service", &e))?;
         let wake = self
@@ -254,6 +264,21 @@ impl IpcNode {
             known_subscribers: 0,
             _services: services,
         })
+    }
+
+    /// A subscriber for command topic `T` that accepts messages only from node `allowed`, in
+    /// sequence ([`AdmittingSubscriber`]); messages for which `relevant` is false are skipped.
+    pub fn admitting_subscriber<T: Sequenced>(
+        &self,
+        allowed: &str,
+        relevant: fn(&T) -> bool,
+    ) -> Result<AdmittingSubscriber<T>, PortError> {
+        Ok(AdmittingSubscriber::new(
+            self.subscriber()?,
+            self.node.config().clone(),
+            allowed,
+            relevant,
+        ))
     }
 
     /// A subscriber for topic `T`. It first receives the topic's history (the newest message for
@@ -504,6 +529,11 @@ impl<T: Topic> std::fmt::Debug for Received<T> {
 }
 
 impl<T: Topic> Received<T> {
+    /// The publisher that sent it (iceoryx2's id, unique on the machine).
+    pub(crate) fn origin(&self) -> iceoryx2::identifiers::UniquePublisherId {
+        self.sample.header().publisher_id()
+    }
+
     /// How old the message is at `now_ns` on the runtime clock (0 if stamped in the future).
     pub fn age_ns(&self, now_ns: u64) -> u64 {
         now_ns.saturating_sub(self.stamp_ns())
@@ -594,6 +624,16 @@ impl<T: Topic> TopicSubscriber<T> {
     /// The descriptor that becomes readable when a message is published (for [`wait_any`]).
     pub fn wake_fd(&self) -> i32 {
         self.listener_fd
+    }
+
+    /// Calls `each` for the publishers connected to the service now.
+    pub(crate) fn publishers(
+        &self,
+        each: impl FnMut(
+            &iceoryx2::service::dynamic_config::publish_subscribe::PublisherDetails,
+        ) -> CallbackProgression,
+    ) {
+        self._services.frames.dynamic_config().list_publishers(each);
     }
 
     /// Full service name.
