@@ -1129,6 +1129,8 @@ pub(crate) fn deployment_for(
          clock = {clock:?}\n\
          seed = {}\n\
          lidar = {:?}\n\n\
+         [inputs]\n\
+         fixes = \"world\"\n\n\
          [arm]\n\
          host = \"127.0.0.1\"\n\
          rtde_port = {}\n\

@@ -65,7 +65,11 @@ fn one(namespace: &str) -> anyhow::Result<Duration> {
     let exec_node = IpcNode::new(namespace, "executive")?;
     let node = IpcNode::new(namespace, "harness")?;
     let mut exec = Executive::new(
-        ExecutiveConfig::for_robot(&robot),
+        // The harness plays the planner and the localiser.
+        ExecutiveConfig {
+            inputs: grop_onboard::executive::inputs::InputSources::all("harness"),
+            ..ExecutiveConfig::for_robot(&robot)
+        },
         Arc::clone(&clock),
         bus.join(),
         ParkedArm,
@@ -110,6 +114,8 @@ fn one(namespace: &str) -> anyhow::Result<Duration> {
                 0.01,
             ))?;
             health.publish_with(|h| {
+                h.seq = ns(now);
+                h.pid = std::process::id();
                 h.stamp_ns = ns(now);
                 h.set_role(ProcessRole::Planner);
             })?;

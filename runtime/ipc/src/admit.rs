@@ -223,39 +223,59 @@ impl<T: Sequenced> AdmittingSubscriber<T> {
         }
     }
 
+    /// The checks of the module docs. Allocation-free for a known publisher whose message is
+    /// accepted (the executive's cycle); a refusal copies the sender's name into its report.
     fn admit(&mut self, message: &Received<T>) -> Result<(), Refusal> {
         let origin = message.origin();
-        let sender = self.sender(origin).ok_or(Refusal::UnknownSender)?;
+        let index = self.sender_index(origin);
+        let Some(sender) = self.known[index].1.as_ref() else {
+            return Err(Refusal::UnknownSender);
+        };
+        let pid = sender.pid;
         if sender.node != self.allowed {
-            return Err(Refusal::NotAllowed { sender });
+            return Err(Refusal::NotAllowed {
+                sender: sender.clone(),
+            });
         }
-        if let Some(claimed) = message.claimed_pid() {
-            if claimed != sender.pid {
-                return Err(Refusal::PidMismatch { sender, claimed });
-            }
+        if let Some(claimed) = message.claimed_pid().filter(|claimed| *claimed != pid) {
+            return Err(Refusal::PidMismatch {
+                sender: sender.clone(),
+                claimed,
+            });
         }
         match self.accepted {
             Some((id, _)) if id == origin => {}
             Some((id, accepted_pid)) if self.is_connected(id) => {
                 return Err(Refusal::Second {
-                    sender,
+                    sender: self.known[index].1.clone().unwrap_or_else(|| Sender {
+                        node: String::new(),
+                        pid,
+                    }),
                     accepted_pid,
                 });
             }
             previous => {
-                if let Some((_, pid)) = previous {
+                if let Some((_, old)) = previous {
                     log::info!(
-                        "{}: publisher pid {pid} left; accepting {sender}",
-                        self.inner.service()
+                        "{}: publisher pid {old} left; accepting node `{}` pid {pid}",
+                        self.inner.service(),
+                        self.allowed
                     );
                 }
-                self.accepted = Some((origin, sender.pid));
+                self.accepted = Some((origin, pid));
                 self.last_seq = None;
             }
         }
         let seq = message.sequence();
         if let Some(last) = self.last_seq.filter(|last| seq <= *last) {
-            return Err(Refusal::NotAdvancing { sender, seq, last });
+            return Err(Refusal::NotAdvancing {
+                sender: Sender {
+                    node: self.allowed.clone(),
+                    pid,
+                },
+                seq,
+                last,
+            });
         }
         self.last_seq = Some(seq);
         Ok(())
@@ -275,11 +295,12 @@ impl<T: Sequenced> AdmittingSubscriber<T> {
         found
     }
 
-    /// Who publisher `id` is: from the cache, else from the service's publisher list and the
-    /// node registry (file reads: once per publisher).
-    fn sender(&mut self, id: UniquePublisherId) -> Option<Sender> {
-        if let Some((_, known)) = self.known.iter().find(|(k, _)| *k == id) {
-            return known.clone();
+    /// Where publisher `id` is in the cache, after resolving it if it is new: from the
+    /// service's publisher list and the node registry (file reads, once per publisher). A
+    /// publisher that already left resolves to `None`.
+    fn sender_index(&mut self, id: UniquePublisherId) -> usize {
+        if let Some(index) = self.known.iter().position(|(k, _)| *k == id) {
+            return index;
         }
         let mut node_id: Option<UniqueNodeId> = None;
         self.inner.publishers(|details| {
@@ -290,15 +311,12 @@ impl<T: Sequenced> AdmittingSubscriber<T> {
                 CallbackProgression::Continue
             }
         });
-        // A publisher that already left is not remembered: it cannot be asked again, and its
-        // id never comes back.
-        let node_id = node_id?;
-        let sender = node_sender(&self.config, node_id);
+        let sender = node_id.and_then(|node| node_sender(&self.config, node));
         if self.known.len() == KNOWN_PUBLISHERS {
             self.known.clear();
         }
-        self.known.push((id, sender.clone()));
-        sender
+        self.known.push((id, sender));
+        self.known.len() - 1
     }
 }
 

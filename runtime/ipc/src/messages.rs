@@ -330,6 +330,10 @@ pub enum EventKind {
     /// let it go again, or the base stalled against something (commanded motion, none
     /// measured); the detail says which.
     Obstacle = 20,
+    /// A command input (plan, fix, the planner's heartbeat) came from a publisher other than the
+    /// deployment's, or out of sequence, and was refused (docs/security.md); the detail says
+    /// which input, who sent it and how many were refused since the last report.
+    InputRefused = 21,
 }
 
 impl EventKind {
@@ -355,6 +359,7 @@ impl EventKind {
             18 => Self::NotPlanned,
             19 => Self::LoadRequested,
             20 => Self::Obstacle,
+            21 => Self::InputRefused,
             _ => {
                 return Err(MessageError::UnknownEnumValue {
                     message: "EventMsg",

@@ -42,6 +42,15 @@ pub enum NodeError {
         /// iceoryx2's reason.
         detail: String,
     },
+    /// iceoryx2's folder (sockets, service and node files) belongs to another OS user, who
+    /// could then read and replace every file of every service (docs/security.md).
+    #[error("iceoryx2's folder {path} is not this user's: {detail}")]
+    Insecure {
+        /// The folder.
+        path: String,
+        /// Whose it is, or why its mode cannot be set.
+        detail: String,
+    },
     /// iceoryx2 could not create the node.
     #[error("creating IPC node {name:?} failed: {detail}")]
     Create {
@@ -151,6 +160,7 @@ impl IpcNode {
                 name: node_name.to_owned(),
                 detail: format!("{error:?}"),
             })?;
+        restrict_root(node.config())?;
         // Reclaim ports of crashed processes so they do not hold publisher/subscriber slots.
         let _ = node.try_cleanup_dead_nodes();
         Ok(Self {
@@ -324,6 +334,33 @@ impl IpcNode {
             _services: services,
         })
     }
+}
+
+/// iceoryx2's folder (`/tmp/iceoryx2` by default: the nodes' and services' files and the
+/// event sockets) must be this user's; its mode is set to 0700 (iceoryx2 makes it 0750), so no
+/// other user, not even of the group, can list or open what is in it. Every file iceoryx2 puts
+/// in `/dev/shm` is 0600 but one 16-byte node counter (docs/security.md).
+fn restrict_root(config: &Config) -> Result<(), NodeError> {
+    use std::os::unix::fs::{MetadataExt, PermissionsExt};
+    let root = String::from_utf8_lossy(config.global.root_path().as_bytes()).into_owned();
+    let insecure = |detail: String| NodeError::Insecure {
+        path: root.clone(),
+        detail,
+    };
+    let meta = std::fs::metadata(&root).map_err(|e| insecure(format!("reading it: {e}")))?;
+    // SAFETY: geteuid has no preconditions and cannot fail.
+    let uid = unsafe { libc::geteuid() };
+    if meta.uid() != uid {
+        return Err(insecure(format!(
+            "it belongs to uid {}, this process runs as uid {uid}",
+            meta.uid()
+        )));
+    }
+    if meta.mode() & 0o077 != 0 {
+        std::fs::set_permissions(&root, std::fs::Permissions::from_mode(0o700))
+            .map_err(|e| insecure(format!("setting its mode to 0700: {e}")))?;
+    }
+    Ok(())
 }
 
 struct Services<T: Topic> {

@@ -21,6 +21,11 @@
 //! script_port = 30002
 //! gripper_port = 63352
 //!
+//! [inputs]                     # optional: the iceoryx2 node allowed to publish each command
+//! plans = "grop-planner"       # input of the executive (docs/security.md); these are the
+//! planner_heartbeats = "grop-planner"  # defaults; the HIL world publishes the fixes as
+//! fixes = "grop-localiser"     # "world"
+//!
 //! [planner]                    # optional section
 //! method = "grop"              # grop | petlon | dvh | fcn-planning | satisficing
 //! paper_smp = false            # true: Smp over the whole heatmap, as the paper
@@ -30,6 +35,8 @@
 use std::path::{Path, PathBuf};
 
 use planner::methods::MethodKind;
+
+pub use crate::executive::inputs::InputSources;
 use serde::Deserialize;
 
 /// Why a deployment file could not be used.
@@ -280,6 +287,8 @@ pub struct Deployment {
     pub seed: u64,
     /// The range sensor feeding the collision monitor.
     pub lidar: LidarSource,
+    /// The node allowed to publish each command input of the executive.
+    pub inputs: InputSources,
 }
 
 /// The file's shape.
@@ -301,6 +310,19 @@ struct DeploymentFile {
     planner: PlannerFile,
     #[serde(default)]
     lidar: Option<String>,
+    #[serde(default)]
+    inputs: InputsFile,
+}
+
+#[derive(Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+struct InputsFile {
+    #[serde(default)]
+    plans: Option<String>,
+    #[serde(default)]
+    planner_heartbeats: Option<String>,
+    #[serde(default)]
+    fixes: Option<String>,
 }
 
 fn default_clock() -> String {
@@ -366,7 +388,17 @@ impl Deployment {
             }
             None => LidarSource::None,
         };
+        let defaults = InputSources::default();
+        let inputs = InputSources {
+            plans: file.inputs.plans.unwrap_or(defaults.plans),
+            planner_heartbeats: file
+                .inputs
+                .planner_heartbeats
+                .unwrap_or(defaults.planner_heartbeats),
+            fixes: file.inputs.fixes.unwrap_or(defaults.fixes),
+        };
         let deployment = Self {
+            inputs,
             lidar,
             source: path.to_owned(),
             namespace: file.namespace,
@@ -405,6 +437,7 @@ impl Deployment {
             planner: PlannerSettings::default(),
             seed: 0,
             lidar: LidarSource::None,
+            inputs: InputSources::default(),
         }
     }
 
@@ -441,6 +474,23 @@ impl Deployment {
             }
         }
         check_clock_spec(&self.clock).map_err(|reason| invalid("clock", reason))?;
+        for (field, node) in [
+            ("inputs.plans", &self.inputs.plans),
+            ("inputs.planner_heartbeats", &self.inputs.planner_heartbeats),
+            ("inputs.fixes", &self.inputs.fixes),
+        ] {
+            let ok = !node.is_empty()
+                && node.len() <= 64
+                && node
+                    .bytes()
+                    .all(|b| b.is_ascii_alphanumeric() || b"-_.".contains(&b));
+            if !ok {
+                return Err(invalid(
+                    field,
+                    format!("{node:?} must be a node name of 1-64 letters, digits, `-`, `_`, `.`"),
+                ));
+            }
+        }
         if self.arm.host.trim().is_empty() || self.arm.host.contains(char::is_whitespace) {
             return Err(invalid(
                 "arm.host",
@@ -544,6 +594,22 @@ retry = "replan"
         assert!(d.planner.paper_smp);
         assert_eq!(d.planner.retry, RetryPolicy::Replan);
         assert_eq!(d.lidar, LidarSource::Udp("0.0.0.0:2368".into()));
+    }
+
+    #[test]
+    fn the_inputs_name_their_publishers_and_default_to_the_onboard_nodes() {
+        let d = parse(FULL).unwrap();
+        assert_eq!(d.inputs, InputSources::default());
+        assert_eq!(d.inputs.plans, "grop-planner");
+        let named = format!("{FULL}\n[inputs]\nfixes = \"world\"\n");
+        let d = parse(&named).unwrap();
+        assert_eq!(d.inputs.fixes, "world");
+        assert_eq!(d.inputs.planner_heartbeats, "grop-planner");
+        let bad = format!("{FULL}\n[inputs]\nplans = \"a b\"\n");
+        let message = parse(&bad).unwrap_err().to_string();
+        assert!(message.contains("`inputs.plans`"), "{message}");
+        let unknown = format!("{FULL}\n[inputs]\noperator = \"x\"\n");
+        assert!(parse(&unknown).is_err());
     }
 
     #[test]

@@ -36,6 +36,7 @@
 pub mod arm_io;
 pub mod base;
 pub mod cycle;
+pub mod inputs;
 pub mod legs;
 pub mod mission;
 pub mod motion_watch;
@@ -141,6 +142,8 @@ pub struct ExecutiveConfig {
     pub docking_blocked_timeout: Duration,
     /// Motion sent to the base with none measured for this long is a stall: the leg stops.
     pub stall_after: Duration,
+    /// The node allowed to publish each command input (docs/security.md).
+    pub inputs: inputs::InputSources,
 }
 
 impl ExecutiveConfig {
@@ -176,6 +179,7 @@ impl ExecutiveConfig {
             blocked_timeout: Duration::from_secs(8),
             docking_blocked_timeout: Duration::from_secs(3),
             stall_after: Duration::from_secs(1),
+            inputs: inputs::InputSources::default(),
         }
     }
 }
@@ -269,4 +273,6 @@ pub struct ExecutiveStats {
     /// Messages published (iceoryx2 0.10 allocates one small reference-counted block per
     /// loaned sample, upstream: the allocation test accounts for exactly these).
     pub published: u64,
+    /// Command inputs refused (not from the deployment's publisher, or out of sequence).
+    pub inputs_refused: u64,
 }

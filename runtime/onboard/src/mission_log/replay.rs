@@ -498,8 +498,11 @@ fn replay_in(
                 mismatches: Arc::clone(&mismatches),
             };
             let arm = RecordingArm::new(arm, &node).map_err(at("the arm's log port"))?;
+            // The recorded fixes come from the replay's feeder.
+            let mut config = ExecutiveConfig::for_robot(&robot);
+            config.inputs.fixes = "replay-world".into();
             let mut exec = Executive::new(
-                ExecutiveConfig::for_robot(&robot),
+                config,
                 Arc::clone(&clock),
                 bus,
                 arm,
