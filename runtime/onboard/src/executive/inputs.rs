@@ -2,7 +2,8 @@
 //! fixes, the planner's heartbeats) are read through [`AdmittingSubscriber`]s that accept only
 //! the node the deployment names for each, in its own process, with an advancing sequence.
 //! Everything else is refused: counted, logged, reported on `events` ([`EventKind::InputRefused`],
-//! at most one event per input a second, with the count since the last) and never handed to the
+//! at most one event per input and kind of refusal a second, with the count since the
+//! last) and never handed to the
 //! mission core. What is accepted is then checked against the map and the robot file as before
 //! (`plan_check`, the localiser's gates).
 //!
@@ -78,8 +79,21 @@ pub struct ExecutiveInputs {
     /// Its own publisher on `events` (its own sequence, beside the mission core's).
     events: TopicPublisher<EventMsg>,
     event_seq: u64,
-    /// Per input: plans, fixes, heartbeats.
-    reports: [RefusalReport; 3],
+    /// Per input (plans, fixes, heartbeats) and kind of refusal ([`refusal_kind`]).
+    reports: [[RefusalReport; REFUSAL_KINDS]; 3],
+}
+
+/// Kinds of [`Refusal`], each reported on its own (one kind must not hide another).
+const REFUSAL_KINDS: usize = 5;
+
+fn refusal_kind(refusal: &Refusal) -> usize {
+    match refusal {
+        Refusal::UnknownSender => 0,
+        Refusal::NotAllowed { .. } => 1,
+        Refusal::Second { .. } => 2,
+        Refusal::PidMismatch { .. } => 3,
+        Refusal::NotAdvancing { .. } => 4,
+    }
 }
 
 const PLANS: usize = 0;
@@ -102,17 +116,14 @@ impl ExecutiveInputs {
             heartbeats: node.admitting_subscriber(&sources.planner_heartbeats, is_planner)?,
             events: node.publisher()?,
             event_seq: 0,
-            reports: [
-                RefusalReport::new("plan/task"),
-                RefusalReport::new("base/pose"),
-                RefusalReport::new("health (planner)"),
-            ],
+            reports: ["plan/task", "base/pose", "health (planner)"]
+                .map(|topic| std::array::from_fn(|_| RefusalReport::new(topic))),
         })
     }
 
     /// Messages refused so far, all inputs.
     pub fn refused(&self) -> u64 {
-        self.reports.iter().map(|r| r.refused).sum()
+        self.reports.iter().flatten().map(|r| r.refused).sum()
     }
 
     /// Reads up to `max` accepted fixes into `out` (cleared first).
@@ -159,25 +170,29 @@ impl ExecutiveInputs {
 
     /// Reports refusals held back by the rate limit once their time has come.
     pub fn report_pending(&mut self, now: Duration) {
-        for i in 0..self.reports.len() {
-            if self.reports[i].pending > 0 && now >= self.reports[i].next_report {
-                self.report(i, now);
+        for input in 0..self.reports.len() {
+            for kind in 0..REFUSAL_KINDS {
+                let r = &self.reports[input][kind];
+                if r.pending > 0 && now >= r.next_report {
+                    self.report(input, kind, now);
+                }
             }
         }
     }
 
     fn refuse(&mut self, input: usize, refusal: Refusal, now: Duration) {
-        let r = &mut self.reports[input];
+        let kind = refusal_kind(&refusal);
+        let r = &mut self.reports[input][kind];
         r.refused += 1;
         r.pending += 1;
         r.last = Some(refusal);
         if now >= r.next_report {
-            self.report(input, now);
+            self.report(input, kind, now);
         }
     }
 
-    fn report(&mut self, input: usize, now: Duration) {
-        let r = &mut self.reports[input];
+    fn report(&mut self, input: usize, kind: usize, now: Duration) {
+        let r = &mut self.reports[input][kind];
         let Some(last) = r.last.take() else { return };
         let detail = format!("{} refused x{}: {last}", r.topic, r.pending);
         log::warn!("input refused: {detail} ({} in all)", r.refused);
