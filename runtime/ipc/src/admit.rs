@@ -162,6 +162,9 @@ pub struct AdmittingSubscriber<T: Sequenced> {
     last_seq: Option<u64>,
     known: Vec<(UniquePublisherId, Option<Sender>)>,
     refused: u64,
+    /// Publishers connected when last looked, and room to list them without allocating.
+    connected: usize,
+    listed: Vec<UniquePublisherId>,
 }
 
 impl<T: Sequenced> AdmittingSubscriber<T> {
@@ -180,6 +183,8 @@ impl<T: Sequenced> AdmittingSubscriber<T> {
             last_seq: None,
             known: Vec::with_capacity(KNOWN_PUBLISHERS),
             refused: 0,
+            connected: 0,
+            listed: Vec::with_capacity(KNOWN_PUBLISHERS),
         }
     }
 
@@ -203,8 +208,33 @@ impl<T: Sequenced> AdmittingSubscriber<T> {
         &self.inner
     }
 
+    /// Identifies publishers that connected since the last call, before their first message:
+    /// the registry's file reads and allocations happen when a publisher connects (the
+    /// planner's start), not when its first command arrives. Cheap when nothing changed (one
+    /// count in shared memory); called by [`try_recv`](Self::try_recv).
+    pub fn identify_new_publishers(&mut self) {
+        let connected = self.inner.publisher_count();
+        if connected == self.connected {
+            return;
+        }
+        self.connected = connected;
+        let mut listed = std::mem::take(&mut self.listed);
+        listed.clear();
+        self.inner.publishers(|details| {
+            if listed.len() < listed.capacity() {
+                listed.push(details.publisher_id);
+            }
+            CallbackProgression::Continue
+        });
+        for id in &listed {
+            self.sender_index(*id);
+        }
+        self.listed = listed;
+    }
+
     /// The oldest unread relevant message, accepted or refused, or `None` at once.
     pub fn try_recv(&mut self) -> Result<Option<Admission<T>>, ReceiveError> {
+        self.identify_new_publishers();
         loop {
             let Some(message) = self.inner.try_recv()? else {
                 return Ok(None);

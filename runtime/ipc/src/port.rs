@@ -663,6 +663,14 @@ impl<T: Topic> TopicSubscriber<T> {
         self.listener_fd
     }
 
+    /// How many publishers are connected to the service now.
+    pub(crate) fn publisher_count(&self) -> usize {
+        self._services
+            .frames
+            .dynamic_config()
+            .number_of_publishers()
+    }
+
     /// Calls `each` for the publishers connected to the service now.
     pub(crate) fn publishers(
         &self,
