@@ -113,7 +113,8 @@ fn a_forger_beside_a_mission_is_refused_and_reported_and_the_mission_goes_on() {
 
 /// The hazard of the issue: forged heartbeats hid a dead planner. In real time (pace 1), with
 /// the forger sending planner heartbeats every 20 ms, killing the planner still aborts the
-/// mission on the missing heartbeats.
+/// mission on the missing heartbeats, whether the forger joined before the death (a second
+/// publisher) or after it (a successor, which the executive does not accept either).
 #[test]
 fn forged_heartbeats_do_not_hide_a_dead_planner() {
     let spec = MissionSpec {

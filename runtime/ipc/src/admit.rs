@@ -7,8 +7,11 @@
 //! way (once per publisher, then cached) and accepts it only when
 //!
 //! 1. the sender's node has the name the deployment gives for this input;
-//! 2. it is the one publisher of that name accepted so far, or the one accepted before has left
-//!    the service (a restarted process; its sequence starts again);
+//! 2. it is the first publisher of that name this subscriber accepted: a second copy is refused,
+//!    and so is a process that replaces the first after it died (it could be an impostor that
+//!    hides the death; a planner that dies ends the mission). Where a new process per message is
+//!    normal (a command-line tool), [`AdmittingSubscriber::accept_successors`] accepts the next
+//!    process once the previous one has left the service; its sequence starts again;
 //! 3. a process id the message carries ([`Sequenced::claimed_pid`], heartbeats) is the
 //!    sender's;
 //! 4. its sequence ([`Sequenced::sequence`]) advances past the last accepted one.
@@ -100,6 +103,15 @@ pub enum Refusal {
         /// The process accepted so far.
         accepted_pid: u32,
     },
+    /// A node of the right name that took the place of the publisher accepted before, which
+    /// has left (died or restarted); accepted only with
+    /// [`AdmittingSubscriber::accept_successors`].
+    Successor {
+        /// Who sent it.
+        sender: Sender,
+        /// The process accepted before.
+        accepted_pid: u32,
+    },
     /// The message names another process than the one that sent it.
     PidMismatch {
         /// Who sent it.
@@ -129,6 +141,13 @@ impl fmt::Display for Refusal {
             } => write!(
                 f,
                 "{sender} is a second publisher (pid {accepted_pid} accepted)"
+            ),
+            Self::Successor {
+                sender,
+                accepted_pid,
+            } => write!(
+                f,
+                "{sender} is a second publisher (pid {accepted_pid} accepted, gone: no successor)"
             ),
             Self::PidMismatch { sender, claimed } => {
                 write!(f, "{sender} claims pid {claimed}")
@@ -162,6 +181,8 @@ pub struct AdmittingSubscriber<T: Sequenced> {
     last_seq: Option<u64>,
     known: Vec<(UniquePublisherId, Option<Sender>)>,
     refused: u64,
+    /// Whether a new process may take over once the accepted one left.
+    successors: bool,
     /// Publishers connected when last looked, and room to list them without allocating.
     connected: usize,
     listed: Vec<UniquePublisherId>,
@@ -183,9 +204,18 @@ impl<T: Sequenced> AdmittingSubscriber<T> {
             last_seq: None,
             known: Vec::with_capacity(KNOWN_PUBLISHERS),
             refused: 0,
+            successors: false,
             connected: 0,
             listed: Vec::with_capacity(KNOWN_PUBLISHERS),
         }
+    }
+
+    /// Accepts a new process of the allowed node once the one accepted before has left the
+    /// service (its sequence starts again): for inputs that a new process sends each time (an
+    /// operator's command-line tool). Without it the first process is the only one.
+    pub fn accept_successors(mut self) -> Self {
+        self.successors = true;
+        self
     }
 
     /// The node name whose messages are accepted.
@@ -277,6 +307,15 @@ impl<T: Sequenced> AdmittingSubscriber<T> {
             Some((id, _)) if id == origin => {}
             Some((id, accepted_pid)) if self.is_connected(id) => {
                 return Err(Refusal::Second {
+                    sender: self.known[index].1.clone().unwrap_or_else(|| Sender {
+                        node: String::new(),
+                        pid,
+                    }),
+                    accepted_pid,
+                });
+            }
+            Some((_, accepted_pid)) if !self.successors => {
+                return Err(Refusal::Successor {
                     sender: self.known[index].1.clone().unwrap_or_else(|| Sender {
                         node: String::new(),
                         pid,

@@ -82,7 +82,7 @@ fn single_writer_topics_have_room_for_one_publisher() {
 }
 
 #[test]
-fn only_the_named_node_is_accepted_and_a_restarted_one_takes_over() {
+fn only_the_named_node_is_accepted_and_no_other_process_after_it() {
     let ns = unique_namespace("named");
     let exec = IpcNode::new(&ns, "executive").unwrap();
     let mut plans = exec
@@ -116,14 +116,33 @@ fn only_the_named_node_is_accepted_and_a_restarted_one_takes_over() {
     ));
     p.publish_with(|m| m.plan_id = 2).unwrap();
     assert_eq!(accepted(&mut plans).plan_id, 2);
-    // A restarted planner (the old publisher gone) starts its sequence again.
+    // Another process of the name after the first left (a restart, or an impostor that would
+    // hide the death) is refused: the first is the only one.
     drop(p);
     drop(planner);
     let planner = IpcNode::new(&ns, "grop-planner").unwrap();
     let p = planner.publisher::<TaskPlanMsg>().unwrap();
-    p.publish_with(|m| m.plan_id = 1).unwrap();
-    assert_eq!(accepted(&mut plans).plan_id, 1);
-    assert_eq!(plans.refused(), 2);
+    p.publish_with(|m| m.plan_id = 3).unwrap();
+    assert!(matches!(refusal(&mut plans), Refusal::Successor { .. }));
+    assert_eq!(plans.refused(), 3);
+}
+
+#[test]
+fn with_successors_a_new_process_takes_over_once_the_first_left() {
+    let ns = unique_namespace("successors");
+    let exec = IpcNode::new(&ns, "executive").unwrap();
+    let mut plans = exec
+        .admitting_subscriber::<TaskPlanMsg>("operator", |_| true)
+        .unwrap()
+        .accept_successors();
+    for _ in 0..2 {
+        let tool = IpcNode::new(&ns, "operator").unwrap();
+        let p = tool.publisher::<TaskPlanMsg>().unwrap();
+        // Each process starts its sequence again.
+        p.publish_with(|m| m.plan_id = 1).unwrap();
+        assert_eq!(accepted(&mut plans).plan_id, 1);
+    }
+    assert_eq!(plans.refused(), 0);
 }
 
 #[test]

@@ -84,7 +84,7 @@ pub struct ExecutiveInputs {
 }
 
 /// Kinds of [`Refusal`], each reported on its own (one kind must not hide another).
-const REFUSAL_KINDS: usize = 5;
+const REFUSAL_KINDS: usize = 6;
 
 fn refusal_kind(refusal: &Refusal) -> usize {
     match refusal {
@@ -93,6 +93,7 @@ fn refusal_kind(refusal: &Refusal) -> usize {
         Refusal::Second { .. } => 2,
         Refusal::PidMismatch { .. } => 3,
         Refusal::NotAdvancing { .. } => 4,
+        Refusal::Successor { .. } => 5,
     }
 }
 
