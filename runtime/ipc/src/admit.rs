@@ -314,6 +314,8 @@ impl<T: Sequenced> AdmittingSubscriber<T> {
                     accepted_pid,
                 });
             }
+            // The same process with a new port after its old one closed: still the one.
+            Some((_, accepted_pid)) if accepted_pid == pid => self.accepted = Some((origin, pid)),
             Some((_, accepted_pid)) if !self.successors => {
                 return Err(Refusal::Successor {
                     sender: self.known[index].1.clone().unwrap_or_else(|| Sender {

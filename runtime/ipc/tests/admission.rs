@@ -116,33 +116,46 @@ fn only_the_named_node_is_accepted_and_no_other_process_after_it() {
     ));
     p.publish_with(|m| m.plan_id = 2).unwrap();
     assert_eq!(accepted(&mut plans).plan_id, 2);
-    // Another process of the name after the first left (a restart, or an impostor that would
-    // hide the death) is refused: the first is the only one.
+    // The same process with a new port after closing its old one is still the one, and its
+    // sequence goes on.
     drop(p);
-    drop(planner);
-    let planner = IpcNode::new(&ns, "grop-planner").unwrap();
     let p = planner.publisher::<TaskPlanMsg>().unwrap();
+    p.publish_with(|m| m.plan_id = 2).unwrap();
+    assert!(matches!(refusal(&mut plans), Refusal::NotAdvancing { .. }));
     p.publish_with(|m| m.plan_id = 3).unwrap();
-    assert!(matches!(refusal(&mut plans), Refusal::Successor { .. }));
+    assert_eq!(accepted(&mut plans).plan_id, 3);
     assert_eq!(plans.refused(), 3);
 }
 
+/// With `accept_successors` (an input a new process sends each time), the next process of the
+/// name is accepted once the first left, its sequence starting again.
 #[test]
 fn with_successors_a_new_process_takes_over_once_the_first_left() {
     let ns = unique_namespace("successors");
     let exec = IpcNode::new(&ns, "executive").unwrap();
-    let mut plans = exec
-        .admitting_subscriber::<TaskPlanMsg>("operator", |_| true)
+    let mut beats = exec
+        .admitting_subscriber::<HeartbeatMsg>("grop-planner", is_planner)
         .unwrap()
         .accept_successors();
-    for _ in 0..2 {
-        let tool = IpcNode::new(&ns, "operator").unwrap();
-        let p = tool.publisher::<TaskPlanMsg>().unwrap();
-        // Each process starts its sequence again.
-        p.publish_with(|m| m.plan_id = 1).unwrap();
-        assert_eq!(accepted(&mut plans).plan_id, 1);
+    {
+        let first = IpcNode::new(&ns, "grop-planner").unwrap();
+        let health = first.publisher::<HeartbeatMsg>().unwrap();
+        health.publish_with(beat(50, std::process::id())).unwrap();
+        assert_eq!(accepted(&mut beats).seq, 50);
     }
-    assert_eq!(plans.refused(), 0);
+    let mut child = std::process::Command::new(std::env::current_exe().unwrap())
+        .args(["--exact", "child_planner_role", "--test-threads", "1"])
+        .env("GROP_ADMISSION_CHILD_NAMESPACE", &ns)
+        .stdout(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    let first = accepted(&mut beats);
+    assert_eq!((first.seq, first.pid), (1, child.id()));
+    drop(first);
+    assert_eq!(beats.accepted_pid(), Some(child.id()));
+    assert_eq!(beats.refused(), 0);
+    let _ = child.kill();
+    let _ = child.wait();
 }
 
 #[test]
@@ -210,4 +223,69 @@ fn fixes_follow_their_publishers_sequence() {
         }
     ));
     assert_eq!(accepted(&mut fixes).seq, 6);
+}
+
+/// Role of the child process in `another_process_of_the_name_is_refused_before_and_after_the_first_left`;
+/// does nothing when run as an ordinary test.
+#[test]
+fn child_planner_role() {
+    let Ok(ns) = std::env::var("GROP_ADMISSION_CHILD_NAMESPACE") else {
+        return;
+    };
+    let node = IpcNode::new(&ns, "grop-planner").unwrap();
+    let health = node.publisher::<HeartbeatMsg>().unwrap();
+    let pid = std::process::id();
+    for seq in 1..=300 {
+        health.publish_with(beat(seq, pid)).unwrap();
+        std::thread::sleep(Duration::from_millis(10));
+    }
+}
+
+/// A second process named as the deployment's node is refused while the first runs, and after
+/// the first left (a successor: a restart and an impostor look the same).
+#[test]
+fn another_process_of_the_name_is_refused_before_and_after_the_first_left() {
+    let ns = unique_namespace("successor");
+    let exec = IpcNode::new(&ns, "executive").unwrap();
+    let mut beats = exec
+        .admitting_subscriber::<HeartbeatMsg>("grop-planner", is_planner)
+        .unwrap();
+    let planner = IpcNode::new(&ns, "grop-planner").unwrap();
+    let health = planner.publisher::<HeartbeatMsg>().unwrap();
+    health.publish_with(beat(1, std::process::id())).unwrap();
+    assert_eq!(accepted(&mut beats).seq, 1);
+    let mut child = std::process::Command::new(std::env::current_exe().unwrap())
+        .args(["--exact", "child_planner_role", "--test-threads", "1"])
+        .env("GROP_ADMISSION_CHILD_NAMESPACE", &ns)
+        .stdout(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    match refusal(&mut beats) {
+        Refusal::Second {
+            sender,
+            accepted_pid,
+        } => {
+            assert_eq!(sender.pid, child.id());
+            assert_eq!(accepted_pid, std::process::id());
+        }
+        other => panic!("{other:?}"),
+    }
+    drop(health);
+    drop(planner);
+    // Drain what the child sent while the first was connected, then its next ones.
+    let end = Instant::now() + Duration::from_secs(5);
+    let successor = loop {
+        assert!(Instant::now() < end, "no successor refusal");
+        match next(&mut beats) {
+            Admission::Refused(Refusal::Second { .. }) => continue,
+            Admission::Refused(r) => break r,
+            Admission::Accepted(m) => panic!("accepted the successor's {m:?}"),
+        }
+    };
+    assert!(
+        matches!(&successor, Refusal::Successor { sender, .. } if sender.pid == child.id()),
+        "{successor:?}"
+    );
+    let _ = child.kill();
+    let _ = child.wait();
 }
