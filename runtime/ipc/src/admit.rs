@@ -7,7 +7,8 @@
 //! way (once per publisher, then cached) and accepts it only when
 //!
 //! 1. the sender's node has the name the deployment gives for this input;
-//! 2. it is the first publisher of that name this subscriber accepted: a second copy is refused,
+//! 2. it is the first publisher of that name this subscriber accepted (or a new port of the same
+//!    process after the old one closed): a second copy is refused,
 //!    and so is a process that replaces the first after it died (it could be an impostor that
 //!    hides the death; a planner that dies ends the mission). Where a new process per message is
 //!    normal (a command-line tool), [`AdmittingSubscriber::accept_successors`] accepts the next
@@ -233,9 +234,15 @@ impl<T: Sequenced> AdmittingSubscriber<T> {
         self.accepted.map(|(_, pid)| pid)
     }
 
-    /// The subscriber underneath (its wake-up descriptor, its service name).
-    pub fn subscriber(&self) -> &TopicSubscriber<T> {
-        &self.inner
+    /// The descriptor that becomes readable when a message is published (for
+    /// [`crate::wait_any`]); read the message with [`try_recv`](Self::try_recv).
+    pub fn wake_fd(&self) -> i32 {
+        self.inner.wake_fd()
+    }
+
+    /// Full service name.
+    pub fn service(&self) -> &str {
+        self.inner.service()
     }
 
     /// Identifies publishers that connected since the last call, before their first message:

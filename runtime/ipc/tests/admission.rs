@@ -197,7 +197,8 @@ fn heartbeats_of_a_second_copy_a_wrong_pid_or_an_old_sequence_are_refused() {
     health.publish_with(beat(3, pid)).unwrap();
     assert_eq!(accepted(&mut beats).seq, 3);
     assert_eq!(beats.refused(), 4);
-    assert!(beats.subscriber().try_recv().unwrap().is_none());
+    assert!(beats.try_recv().unwrap().is_none());
+    assert!(beats.service().ends_with("/health"));
 }
 
 #[test]
