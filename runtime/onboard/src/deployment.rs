@@ -13,6 +13,8 @@
 //! seed = 42                    # Smp draws and tie-breaks; default 0
 //! lidar = "udp:0.0.0.0:2368"   # the VLP-16's data port, or "none" (no collision monitor:
 //!                              # refused on a real CAN bus); absent: "none" on vcan
+//! lidar_sensor = "192.168.1.201"  # optional: the sensor's address; datagrams from any
+//!                              # other sender are dropped (docs/security.md)
 //!
 //! [arm]                        # UR5e controller
 //! host = "192.168.1.10"
@@ -289,6 +291,8 @@ pub struct Deployment {
     pub lidar: LidarSource,
     /// The node allowed to publish each command input of the executive.
     pub inputs: InputSources,
+    /// The range sensor's address: its packets only are read (`None`: any sender's).
+    pub lidar_sensor: Option<std::net::IpAddr>,
 }
 
 /// The file's shape.
@@ -312,6 +316,8 @@ struct DeploymentFile {
     lidar: Option<String>,
     #[serde(default)]
     inputs: InputsFile,
+    #[serde(default)]
+    lidar_sensor: Option<String>,
 }
 
 #[derive(Deserialize, Default)]
@@ -397,7 +403,23 @@ impl Deployment {
                 .unwrap_or(defaults.planner_heartbeats),
             fixes: file.inputs.fixes.unwrap_or(defaults.fixes),
         };
+        let lidar_sensor = match file.lidar_sensor.as_deref() {
+            None => None,
+            Some(_) if lidar == LidarSource::None => {
+                return Err(invalid(
+                    "lidar_sensor",
+                    "names a sensor but `lidar` is \"none\"".to_owned(),
+                ));
+            }
+            Some(text) => Some(text.parse().map_err(|_| {
+                invalid(
+                    "lidar_sensor",
+                    format!("{text:?} is not an IP address (the sensor's, e.g. 192.168.1.201)"),
+                )
+            })?),
+        };
         let deployment = Self {
+            lidar_sensor,
             inputs,
             lidar,
             source: path.to_owned(),
@@ -438,6 +460,7 @@ impl Deployment {
             seed: 0,
             lidar: LidarSource::None,
             inputs: InputSources::default(),
+            lidar_sensor: None,
         }
     }
 
@@ -610,6 +633,26 @@ retry = "replan"
         assert!(message.contains("`inputs.plans`"), "{message}");
         let unknown = format!("{FULL}\n[inputs]\noperator = \"x\"\n");
         assert!(parse(&unknown).is_err());
+    }
+
+    #[test]
+    fn the_lidar_sensor_is_an_ip_address_and_needs_a_lidar() {
+        assert_eq!(parse(FULL).unwrap().lidar_sensor, None);
+        let named = FULL.replace(
+            "lidar = \"udp:0.0.0.0:2368\"\n",
+            "lidar = \"udp:0.0.0.0:2368\"\nlidar_sensor = \"192.168.1.201\"\n",
+        );
+        assert_ne!(named, FULL);
+        assert_eq!(
+            parse(&named).unwrap().lidar_sensor,
+            Some("192.168.1.201".parse().unwrap())
+        );
+        let bad = named.replace("192.168.1.201", "sensor");
+        let message = parse(&bad).unwrap_err().to_string();
+        assert!(message.contains("`lidar_sensor`"), "{message}");
+        let blind = named.replace("udp:0.0.0.0:2368", "none");
+        let message = parse(&blind).unwrap_err().to_string();
+        assert!(message.contains("`lidar_sensor`"), "{message}");
     }
 
     #[test]

@@ -105,7 +105,13 @@ fn main() -> anyhow::Result<()> {
     .context("starting the executive")?;
     match &deployment.lidar {
         LidarSource::Udp(addr) => {
-            let sensor = Vlp16Sensor::bind(addr, &robot.lidar, robot.footprint.body_height_m)?;
+            let mut sensor = Vlp16Sensor::bind(addr, &robot.lidar, robot.footprint.body_height_m)?;
+            match deployment.lidar_sensor {
+                Some(ip) => sensor.only_from(ip),
+                None => log::warn!(
+                    "grop-executive: no lidar_sensor in the deployment: range packets from any sender are read"
+                ),
+            }
             executive.set_range_sensor(Box::new(sensor), &scene);
             log::info!("grop-executive: collision monitor on the VLP-16 at udp:{addr}");
         }
