@@ -160,3 +160,17 @@ pub fn plan_to_motion(samples: usize, namespace: &str) -> anyhow::Result<Summary
     }
     Ok(Summary::of(&mut ns_samples))
 }
+
+#[cfg(test)]
+mod tests {
+    /// The harness is the planner and the localiser the executive accepts (its node is named in
+    /// the executive's inputs, its heartbeats carry its pid and an advancing sequence): the
+    /// plan reaches the base. Fails when anything it publishes is refused.
+    #[test]
+    fn one_plan_reaches_the_base() {
+        let ns = format!("test-{}-plan-motion", std::process::id());
+        if let Err(e) = super::plan_to_motion(1, &ns) {
+            panic!("{e:#}");
+        }
+    }
+}
