@@ -2,7 +2,7 @@
 //! loopback in HIL), read without blocking.
 
 use std::io;
-use std::net::{SocketAddr, ToSocketAddrs, UdpSocket};
+use std::net::{IpAddr, SocketAddr, ToSocketAddrs, UdpSocket};
 
 use crate::calib::PACKETS_PER_S;
 use crate::packet::{DataPacket, PAYLOAD_LEN, PacketError};
@@ -23,6 +23,10 @@ pub struct UdpSource {
     pub foreign_length: u64,
     /// The receive buffer the kernel granted (bytes), if it could be read.
     pub receive_buffer_bytes: Option<usize>,
+    /// Datagrams dropped unread because they came from another address than the sensor's
+    /// ([`UdpSource::only_from`]).
+    pub foreign_sender: u64,
+    sensor: Option<IpAddr>,
 }
 
 fn set_receive_buffer(socket: &UdpSocket, bytes: usize) -> Option<usize> {
@@ -82,7 +86,18 @@ impl UdpSource {
             datagrams: 0,
             foreign_length: 0,
             receive_buffer_bytes: granted,
+            foreign_sender: 0,
+            sensor: None,
         })
+    }
+
+    /// Takes datagrams only from `sensor` (the sensor's address on the robot's network): any
+    /// other sender's are dropped unread and counted in [`foreign_sender`](Self::foreign_sender).
+    /// A local process cannot send from the sensor's address without raw sockets
+    /// (`CAP_NET_RAW`), so a forged scan from another program does not reach the monitor
+    /// (docs/security.md).
+    pub fn only_from(&mut self, sensor: IpAddr) {
+        self.sensor = Some(sensor);
     }
 
     /// The address the socket is bound to.
@@ -98,8 +113,11 @@ impl UdpSource {
     ) -> io::Result<usize> {
         let mut read = 0;
         loop {
-            match self.socket.recv(&mut self.buffer[..]) {
-                Ok(len) => {
+            match self.socket.recv_from(&mut self.buffer[..]) {
+                Ok((_, from)) if self.sensor.is_some_and(|ip| ip != from.ip()) => {
+                    self.foreign_sender += 1;
+                }
+                Ok((len, _)) => {
                     read += 1;
                     self.datagrams += 1;
                     if len != PAYLOAD_LEN {

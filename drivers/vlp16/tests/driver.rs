@@ -525,6 +525,37 @@ fn udp_over_loopback_drains_everything_waiting() {
     assert_eq!(source.drain(|_| {}).ok(), Some(0));
 }
 
+/// Only the sensor's address is read once `only_from` names it: a packet from another
+/// address (another program on the machine) is dropped unread and counted.
+#[test]
+fn udp_takes_packets_only_from_the_sensors_address() {
+    let mut source = UdpSource::bind("127.0.0.1:0").unwrap_or_else(|e| panic!("{e}"));
+    let to = source.local_addr().unwrap_or_else(|e| panic!("{e}"));
+    source.only_from("127.0.0.2".parse().unwrap_or_else(|e| panic!("{e}")));
+    let sensor = std::net::UdpSocket::bind("127.0.0.2:0").unwrap_or_else(|e| panic!("{e}"));
+    let forger = std::net::UdpSocket::bind("127.0.0.1:0").unwrap_or_else(|e| panic!("{e}"));
+    let good = packet(steady(100, 40), 42).to_bytes();
+    let forged = packet(steady(100, 40), 7).to_bytes();
+    for _ in 0..5 {
+        forger
+            .send_to(&forged, to)
+            .unwrap_or_else(|e| panic!("{e}"));
+        sensor.send_to(&good, to).unwrap_or_else(|e| panic!("{e}"));
+    }
+    let mut stamps = Vec::new();
+    for _ in 0..50 {
+        source
+            .drain(|r| stamps.push(r.map(|p| p.timestamp_us)))
+            .unwrap_or_else(|e| panic!("{e}"));
+        if stamps.len() + source.foreign_sender as usize == 10 {
+            break;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(10));
+    }
+    assert_eq!(stamps, vec![Ok(42); 5]);
+    assert_eq!((source.datagrams, source.foreign_sender), (5, 5));
+}
+
 fn valid_packet_bytes() -> impl Strategy<Value = Vec<u8>> {
     (
         proptest::collection::vec(any::<u8>(), PAYLOAD_LEN),

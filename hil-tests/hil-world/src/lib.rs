@@ -1177,7 +1177,11 @@ pub(crate) fn deployment_for(
          can = \"vcan:{bus}\"\n\
          clock = {clock:?}\n\
          seed = {}\n\
-         lidar = {:?}\n\n\
+         lidar = {:?}\n\
+         {}\n\
+         [inputs]\n\
+         fixes = \"world\"\n\
+         operator = \"world\"\n\n\
          [arm]\n\
          host = \"127.0.0.1\"\n\
          rtde_port = {}\n\
@@ -1195,6 +1199,11 @@ pub(crate) fn deployment_for(
         match field("lidar")?.as_str() {
             "none" => "none".to_owned(),
             port => format!("udp:127.0.0.1:{port}"),
+        },
+        // The simulated sensor sends from loopback.
+        match field("lidar")?.as_str() {
+            "none" => "",
+            _ => "lidar_sensor = \"127.0.0.1\"\n",
         },
         field("rtde")?,
         field("dashboard")?,

@@ -17,6 +17,7 @@ use grop_ipc::{
     ProcessRole, ReplanRequestMsg, TableSide, TaskPlanMsg, TaskStep, TopicPublisher,
     TopicSubscriber,
 };
+use grop_onboard::executive::inputs::InputSources;
 use grop_onboard::executive::unload::{ArmFault, ArmPort, SkillStatus};
 use grop_onboard::executive::{
     AbortReason, ArmDevice, ArmSnapshot, Executive, ExecutiveConfig, MissionState, RmpExecutive,
@@ -198,7 +199,11 @@ impl Harness {
         let test_node = IpcNode::new(&ns, "harness").unwrap();
         let clock = Arc::new(ManualClock::default());
         let exec = Executive::new(
-            ExecutiveConfig::for_robot(&robot),
+            // The harness plays the planner and the localiser.
+            ExecutiveConfig {
+                inputs: InputSources::all("harness"),
+                ..ExecutiveConfig::for_robot(&robot)
+            },
             Arc::clone(&clock) as Arc<dyn Clock>,
             bus.join(),
             FakeArm {
@@ -327,6 +332,9 @@ impl Harness {
             if self.planner_alive {
                 self.health
                     .publish_with(|h| {
+                        // The executive accepts the planner's own pid and an advancing sequence.
+                        h.seq = ns;
+                        h.pid = std::process::id();
                         h.stamp_ns = ns;
                         h.set_role(ProcessRole::Planner);
                     })

@@ -65,7 +65,11 @@ fn one(namespace: &str) -> anyhow::Result<Duration> {
     let exec_node = IpcNode::new(namespace, "executive")?;
     let node = IpcNode::new(namespace, "harness")?;
     let mut exec = Executive::new(
-        ExecutiveConfig::for_robot(&robot),
+        // The harness plays the planner and the localiser.
+        ExecutiveConfig {
+            inputs: grop_onboard::executive::inputs::InputSources::all("harness"),
+            ..ExecutiveConfig::for_robot(&robot)
+        },
         Arc::clone(&clock),
         bus.join(),
         ParkedArm,
@@ -111,6 +115,8 @@ fn one(namespace: &str) -> anyhow::Result<Duration> {
                 0.01,
             ))?;
             health.publish_with(|h| {
+                h.seq = ns(now);
+                h.pid = std::process::id();
                 h.stamp_ns = ns(now);
                 h.set_role(ProcessRole::Planner);
             })?;
@@ -163,4 +169,18 @@ pub fn plan_to_motion(samples: usize, namespace: &str) -> anyhow::Result<Summary
         ns_samples.push(u64::try_from(d.as_nanos()).unwrap_or(u64::MAX));
     }
     Ok(Summary::of(&mut ns_samples))
+}
+
+#[cfg(test)]
+mod tests {
+    /// The harness is the planner and the localiser the executive accepts (its node is named in
+    /// the executive's inputs, its heartbeats carry its pid and an advancing sequence): the
+    /// plan reaches the base. Fails when anything it publishes is refused.
+    #[test]
+    fn one_plan_reaches_the_base() {
+        let ns = format!("test-{}-plan-motion", std::process::id());
+        if let Err(e) = super::plan_to_motion(1, &ns) {
+            panic!("{e:#}");
+        }
+    }
 }

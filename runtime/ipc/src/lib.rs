@@ -42,12 +42,14 @@
 //! `stamp_ns` from the runtime clock, and [`Received::age_ns`] / [`Received::is_stale`] compare
 //! it with the reader's now.
 
+mod admit;
 mod arm_io;
 mod camera;
 mod messages;
 mod mission;
 mod port;
 
+pub use admit::{Admission, AdmittingSubscriber, Refusal, Sender, Sequenced};
 pub use arm_io::{
     ARM_FLAG_CLOSE, ARM_FLAG_EMERGENCY_STOP, ARM_FLAG_PROGRAM_RUNNING, ARM_FLAG_PROTECTIVE_STOP,
     ARM_SAFETY_MODE_SHIFT, ARM_STATUS_DONE, ARM_STATUS_DONE_HOLDING, ARM_STATUS_RUNNING, ArmCall,
@@ -148,7 +150,8 @@ impl Topic for TaskPlanMsg {
     const HISTORY: usize = 1;
     const BUFFER: usize = 4;
     const MAX_SUBSCRIBERS: usize = 8;
-    const MAX_PUBLISHERS: usize = 2;
+    // One writer (docs/security.md): a second publisher cannot connect.
+    const MAX_PUBLISHERS: usize = 1;
     fn stamp_ns(&self) -> u64 {
         self.stamp_ns
     }
@@ -160,7 +163,8 @@ impl Topic for ReplanRequestMsg {
     const HISTORY: usize = 0;
     const BUFFER: usize = 8;
     const MAX_SUBSCRIBERS: usize = 4;
-    const MAX_PUBLISHERS: usize = 2;
+    // One writer (docs/security.md): a second publisher cannot connect.
+    const MAX_PUBLISHERS: usize = 1;
     fn stamp_ns(&self) -> u64 {
         self.stamp_ns
     }
@@ -172,7 +176,8 @@ impl Topic for LoadRequestMsg {
     const HISTORY: usize = 0;
     const BUFFER: usize = 8;
     const MAX_SUBSCRIBERS: usize = 4;
-    const MAX_PUBLISHERS: usize = 2;
+    // One writer (docs/security.md): a second publisher cannot connect.
+    const MAX_PUBLISHERS: usize = 1;
     fn stamp_ns(&self) -> u64 {
         self.stamp_ns
     }
@@ -196,7 +201,8 @@ impl Topic for BasePoseMsg {
     // 10 Hz fixes for over a second.
     const BUFFER: usize = 16;
     const MAX_SUBSCRIBERS: usize = 8;
-    const MAX_PUBLISHERS: usize = 2;
+    // One writer (docs/security.md): a second publisher cannot connect.
+    const MAX_PUBLISHERS: usize = 1;
     fn stamp_ns(&self) -> u64 {
         self.stamp_ns
     }

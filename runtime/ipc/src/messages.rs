@@ -333,6 +333,10 @@ pub enum EventKind {
     /// The operator's enable: waited for at start, taken (arming the base, or releasing a
     /// latched safety stop whose cause cleared), or refused (the cause is still there).
     Enable = 21,
+    /// A command input (plan, fix, the planner's heartbeat) came from a publisher other than the
+    /// deployment's, or out of sequence, and was refused (docs/security.md); the detail says
+    /// which input, who sent it and how many were refused since the last report.
+    InputRefused = 22,
 }
 
 impl EventKind {
@@ -359,6 +363,7 @@ impl EventKind {
             19 => Self::LoadRequested,
             20 => Self::Obstacle,
             21 => Self::Enable,
+            22 => Self::InputRefused,
             _ => {
                 return Err(MessageError::UnknownEnumValue {
                     message: "EventMsg",

@@ -13,9 +13,10 @@ use iceoryx2::prelude::*;
 use iceoryx2::sample::Sample;
 use iceoryx2::service::port_factory::{event, publish_subscribe};
 
+use crate::admit::{AdmittingSubscriber, Sequenced};
 use crate::{CameraFrameHeader, CameraFrameMsg, MessageError, Topic};
 
-type Ipc = ipc_threadsafe::Service;
+pub(crate) type Ipc = ipc_threadsafe::Service;
 
 /// Longest accepted namespace.
 const MAX_NAMESPACE_LEN: usize = 100;
@@ -39,6 +40,15 @@ pub enum NodeError {
         /// The rejected name.
         name: String,
         /// iceoryx2's reason.
+        detail: String,
+    },
+    /// iceoryx2's folder (sockets, service and node files) belongs to another OS user, who
+    /// could then read and replace every file of every service (docs/security.md).
+    #[error("iceoryx2's folder {path} is not this user's: {detail}")]
+    Insecure {
+        /// The folder.
+        path: String,
+        /// Whose it is, or why its mode cannot be set.
         detail: String,
     },
     /// iceoryx2 could not create the node.
@@ -150,6 +160,7 @@ impl IpcNode {
                 name: node_name.to_owned(),
                 detail: format!("{error:?}"),
             })?;
+        restrict_root(node.config())?;
         // Reclaim ports of crashed processes so they do not hold publisher/subscriber slots.
         let _ = node.try_cleanup_dead_nodes();
         Ok(Self {
@@ -197,6 +208,15 @@ impl IpcNode {
                     ipc("opening the service", &error)
                 }
             })?;
+        // A topic with one writer must not have room for a second: a service another build or
+        // program created with more publisher slots is refused, not joined (docs/security.md).
+        let slots = frames.static_config().max_publishers();
+        if T::MAX_PUBLISHERS == 1 && slots != 1 {
+            return Err(PortError::Incompatible {
+                service: service.clone(),
+                detail: format!("it has room for {slots} publishers; this topic has one writer"),
+            });
+        }
         let wake_name = ServiceName::new(&format!("{service}/wake"))
             .map_err(|e| ipc("naming the wake-up service", &e))?;
         let wake = self
@@ -256,6 +276,21 @@ impl IpcNode {
         })
     }
 
+    /// A subscriber for command topic `T` that accepts messages only from node `allowed`, in
+    /// sequence ([`AdmittingSubscriber`]); messages for which `relevant` is false are skipped.
+    pub fn admitting_subscriber<T: Sequenced>(
+        &self,
+        allowed: &str,
+        relevant: fn(&T) -> bool,
+    ) -> Result<AdmittingSubscriber<T>, PortError> {
+        Ok(AdmittingSubscriber::new(
+            self.subscriber()?,
+            self.node.config().clone(),
+            allowed,
+            relevant,
+        ))
+    }
+
     /// A subscriber for topic `T`. It first receives the topic's history (the newest message for
     /// states, plans and frames), then everything published after this call.
     pub fn subscriber<T: Topic>(&self) -> Result<TopicSubscriber<T>, PortError> {
@@ -299,6 +334,33 @@ impl IpcNode {
             _services: services,
         })
     }
+}
+
+/// iceoryx2's folder (`/tmp/iceoryx2` by default: the nodes' and services' files and the
+/// event sockets) must be this user's; its mode is set to 0700 (iceoryx2 makes it 0750), so no
+/// other user, not even of the group, can list or open what is in it. Every file iceoryx2 puts
+/// in `/dev/shm` is 0600 but one 16-byte node counter (docs/security.md).
+fn restrict_root(config: &Config) -> Result<(), NodeError> {
+    use std::os::unix::fs::{MetadataExt, PermissionsExt};
+    let root = String::from_utf8_lossy(config.global.root_path().as_bytes()).into_owned();
+    let insecure = |detail: String| NodeError::Insecure {
+        path: root.clone(),
+        detail,
+    };
+    let meta = std::fs::metadata(&root).map_err(|e| insecure(format!("reading it: {e}")))?;
+    // SAFETY: geteuid has no preconditions and cannot fail.
+    let uid = unsafe { libc::geteuid() };
+    if meta.uid() != uid {
+        return Err(insecure(format!(
+            "it belongs to uid {}, this process runs as uid {uid}",
+            meta.uid()
+        )));
+    }
+    if meta.mode() & 0o077 != 0 {
+        std::fs::set_permissions(&root, std::fs::Permissions::from_mode(0o700))
+            .map_err(|e| insecure(format!("setting its mode to 0700: {e}")))?;
+    }
+    Ok(())
 }
 
 struct Services<T: Topic> {
@@ -504,6 +566,11 @@ impl<T: Topic> std::fmt::Debug for Received<T> {
 }
 
 impl<T: Topic> Received<T> {
+    /// The publisher that sent it (iceoryx2's id, unique on the machine).
+    pub(crate) fn origin(&self) -> iceoryx2::identifiers::UniquePublisherId {
+        self.sample.header().publisher_id()
+    }
+
     /// How old the message is at `now_ns` on the runtime clock (0 if stamped in the future).
     pub fn age_ns(&self, now_ns: u64) -> u64 {
         now_ns.saturating_sub(self.stamp_ns())
@@ -594,6 +661,24 @@ impl<T: Topic> TopicSubscriber<T> {
     /// The descriptor that becomes readable when a message is published (for [`wait_any`]).
     pub fn wake_fd(&self) -> i32 {
         self.listener_fd
+    }
+
+    /// How many publishers are connected to the service now.
+    pub(crate) fn publisher_count(&self) -> usize {
+        self._services
+            .frames
+            .dynamic_config()
+            .number_of_publishers()
+    }
+
+    /// Calls `each` for the publishers connected to the service now.
+    pub(crate) fn publishers(
+        &self,
+        each: impl FnMut(
+            &iceoryx2::service::dynamic_config::publish_subscribe::PublisherDetails,
+        ) -> CallbackProgression,
+    ) {
+        self._services.frames.dynamic_config().list_publishers(each);
     }
 
     /// Full service name.

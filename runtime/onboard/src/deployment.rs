@@ -13,6 +13,8 @@
 //! seed = 42                    # Smp draws and tie-breaks; default 0
 //! lidar = "udp:0.0.0.0:2368"   # the VLP-16's data port, or "none" (no collision monitor:
 //!                              # refused on a real CAN bus); absent: "none" on vcan
+//! lidar_sensor = "192.168.1.201"  # optional: the sensor's address; datagrams from any
+//!                              # other sender are dropped (docs/security.md)
 //!
 //! [arm]                        # UR5e controller
 //! host = "192.168.1.10"
@@ -20,6 +22,12 @@
 //! dashboard_port = 29999
 //! script_port = 30002
 //! gripper_port = 63352
+//!
+//! [inputs]                     # optional: the iceoryx2 node allowed to publish each command
+//! plans = "grop-planner"       # input of the executive (docs/security.md); these are the
+//! planner_heartbeats = "grop-planner"  # defaults; the HIL world publishes the fixes as
+//! fixes = "grop-localiser"     # "world"
+//! operator = "grop-enable"     # the operator's enable (`grop enable`; the HIL world: "world")
 //!
 //! [planner]                    # optional section
 //! method = "grop"              # grop | petlon | dvh | fcn-planning | satisficing
@@ -30,6 +38,8 @@
 use std::path::{Path, PathBuf};
 
 use planner::methods::MethodKind;
+
+pub use crate::executive::inputs::InputSources;
 use serde::Deserialize;
 
 /// Why a deployment file could not be used.
@@ -280,6 +290,10 @@ pub struct Deployment {
     pub seed: u64,
     /// The range sensor feeding the collision monitor.
     pub lidar: LidarSource,
+    /// The node allowed to publish each command input of the executive.
+    pub inputs: InputSources,
+    /// The range sensor's address: its packets only are read (`None`: any sender's).
+    pub lidar_sensor: Option<std::net::IpAddr>,
 }
 
 /// The file's shape.
@@ -301,6 +315,23 @@ struct DeploymentFile {
     planner: PlannerFile,
     #[serde(default)]
     lidar: Option<String>,
+    #[serde(default)]
+    inputs: InputsFile,
+    #[serde(default)]
+    lidar_sensor: Option<String>,
+}
+
+#[derive(Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+struct InputsFile {
+    #[serde(default)]
+    plans: Option<String>,
+    #[serde(default)]
+    planner_heartbeats: Option<String>,
+    #[serde(default)]
+    fixes: Option<String>,
+    #[serde(default)]
+    operator: Option<String>,
 }
 
 fn default_clock() -> String {
@@ -366,7 +397,34 @@ impl Deployment {
             }
             None => LidarSource::None,
         };
+        let defaults = InputSources::default();
+        let inputs = InputSources {
+            plans: file.inputs.plans.unwrap_or(defaults.plans),
+            planner_heartbeats: file
+                .inputs
+                .planner_heartbeats
+                .unwrap_or(defaults.planner_heartbeats),
+            fixes: file.inputs.fixes.unwrap_or(defaults.fixes),
+            operator: file.inputs.operator.unwrap_or(defaults.operator),
+        };
+        let lidar_sensor = match file.lidar_sensor.as_deref() {
+            None => None,
+            Some(_) if lidar == LidarSource::None => {
+                return Err(invalid(
+                    "lidar_sensor",
+                    "names a sensor but `lidar` is \"none\"".to_owned(),
+                ));
+            }
+            Some(text) => Some(text.parse().map_err(|_| {
+                invalid(
+                    "lidar_sensor",
+                    format!("{text:?} is not an IP address (the sensor's, e.g. 192.168.1.201)"),
+                )
+            })?),
+        };
         let deployment = Self {
+            lidar_sensor,
+            inputs,
             lidar,
             source: path.to_owned(),
             namespace: file.namespace,
@@ -405,6 +463,8 @@ impl Deployment {
             planner: PlannerSettings::default(),
             seed: 0,
             lidar: LidarSource::None,
+            inputs: InputSources::default(),
+            lidar_sensor: None,
         }
     }
 
@@ -441,6 +501,24 @@ impl Deployment {
             }
         }
         check_clock_spec(&self.clock).map_err(|reason| invalid("clock", reason))?;
+        for (field, node) in [
+            ("inputs.plans", &self.inputs.plans),
+            ("inputs.planner_heartbeats", &self.inputs.planner_heartbeats),
+            ("inputs.fixes", &self.inputs.fixes),
+            ("inputs.operator", &self.inputs.operator),
+        ] {
+            let ok = !node.is_empty()
+                && node.len() <= 64
+                && node
+                    .bytes()
+                    .all(|b| b.is_ascii_alphanumeric() || b"-_.".contains(&b));
+            if !ok {
+                return Err(invalid(
+                    field,
+                    format!("{node:?} must be a node name of 1-64 letters, digits, `-`, `_`, `.`"),
+                ));
+            }
+        }
         if self.arm.host.trim().is_empty() || self.arm.host.contains(char::is_whitespace) {
             return Err(invalid(
                 "arm.host",
@@ -544,6 +622,42 @@ retry = "replan"
         assert!(d.planner.paper_smp);
         assert_eq!(d.planner.retry, RetryPolicy::Replan);
         assert_eq!(d.lidar, LidarSource::Udp("0.0.0.0:2368".into()));
+    }
+
+    #[test]
+    fn the_inputs_name_their_publishers_and_default_to_the_onboard_nodes() {
+        let d = parse(FULL).unwrap();
+        assert_eq!(d.inputs, InputSources::default());
+        assert_eq!(d.inputs.plans, "grop-planner");
+        let named = format!("{FULL}\n[inputs]\nfixes = \"world\"\n");
+        let d = parse(&named).unwrap();
+        assert_eq!(d.inputs.fixes, "world");
+        assert_eq!(d.inputs.planner_heartbeats, "grop-planner");
+        let bad = format!("{FULL}\n[inputs]\nplans = \"a b\"\n");
+        let message = parse(&bad).unwrap_err().to_string();
+        assert!(message.contains("`inputs.plans`"), "{message}");
+        let unknown = format!("{FULL}\n[inputs]\noperator = \"x\"\n");
+        assert!(parse(&unknown).is_err());
+    }
+
+    #[test]
+    fn the_lidar_sensor_is_an_ip_address_and_needs_a_lidar() {
+        assert_eq!(parse(FULL).unwrap().lidar_sensor, None);
+        let named = FULL.replace(
+            "lidar = \"udp:0.0.0.0:2368\"\n",
+            "lidar = \"udp:0.0.0.0:2368\"\nlidar_sensor = \"192.168.1.201\"\n",
+        );
+        assert_ne!(named, FULL);
+        assert_eq!(
+            parse(&named).unwrap().lidar_sensor,
+            Some("192.168.1.201".parse().unwrap())
+        );
+        let bad = named.replace("192.168.1.201", "sensor");
+        let message = parse(&bad).unwrap_err().to_string();
+        assert!(message.contains("`lidar_sensor`"), "{message}");
+        let blind = named.replace("udp:0.0.0.0:2368", "none");
+        let message = parse(&blind).unwrap_err().to_string();
+        assert!(message.contains("`lidar_sensor`"), "{message}");
     }
 
     #[test]

@@ -89,8 +89,12 @@ fn main() -> anyhow::Result<()> {
         grop_clock::open(&deployment.clock, "grop-executive", EXECUTIVE_CLOCK_RANK)
             .with_context(|| format!("opening clock {}", deployment.clock))?,
     );
+    let config = ExecutiveConfig {
+        inputs: deployment.inputs.clone(),
+        ..ExecutiveConfig::for_robot(&robot)
+    };
     let mut executive = Executive::new(
-        ExecutiveConfig::for_robot(&robot),
+        config,
         Arc::clone(&clock),
         bus,
         arm,
@@ -101,7 +105,13 @@ fn main() -> anyhow::Result<()> {
     .context("starting the executive")?;
     match &deployment.lidar {
         LidarSource::Udp(addr) => {
-            let sensor = Vlp16Sensor::bind(addr, &robot.lidar, robot.footprint.body_height_m)?;
+            let mut sensor = Vlp16Sensor::bind(addr, &robot.lidar, robot.footprint.body_height_m)?;
+            match deployment.lidar_sensor {
+                Some(ip) => sensor.only_from(ip),
+                None => log::warn!(
+                    "grop-executive: no lidar_sensor in the deployment: range packets from any sender are read"
+                ),
+            }
             executive.set_range_sensor(Box::new(sensor), &scene);
             log::info!("grop-executive: collision monitor on the VLP-16 at udp:{addr}");
         }
@@ -126,11 +136,12 @@ fn main() -> anyhow::Result<()> {
         log::info!("grop-executive: range sensor {range}");
     }
     log::info!(
-        "grop-executive: {state:?}; {} cycles, {} overruns, {} unloads ok, {} failed",
+        "grop-executive: {state:?}; {} cycles, {} overruns, {} unloads ok, {} failed, {} inputs refused",
         stats.cycles,
         stats.overruns,
         stats.unloads_ok,
-        stats.unloads_failed
+        stats.unloads_failed,
+        stats.inputs_refused
     );
     // Give the zero command a moment on a real bus before the process goes.
     if matches!(state, MissionState::Aborted(_)) && deployment.clock == "wall" {

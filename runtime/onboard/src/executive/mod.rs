@@ -36,6 +36,7 @@
 pub mod arm_io;
 pub mod base;
 pub mod cycle;
+pub mod inputs;
 pub mod legs;
 pub mod mission;
 pub mod motion_watch;
@@ -147,6 +148,8 @@ pub struct ExecutiveConfig {
     /// The arm may run in UR's reduced safety mode (reduced limits in force); otherwise reduced
     /// mode pauses the mission like a safeguard stop.
     pub allow_reduced_mode: bool,
+    /// The node allowed to publish each command input (docs/security.md).
+    pub inputs: inputs::InputSources,
 }
 
 impl ExecutiveConfig {
@@ -183,6 +186,7 @@ impl ExecutiveConfig {
             docking_blocked_timeout: Duration::from_secs(3),
             stall_after: Duration::from_secs(1),
             allow_reduced_mode: true,
+            inputs: inputs::InputSources::default(),
         }
     }
 }
@@ -281,4 +285,6 @@ pub struct ExecutiveStats {
     /// Messages published (iceoryx2 0.10 allocates one small reference-counted block per
     /// loaned sample, upstream: the allocation test accounts for exactly these).
     pub published: u64,
+    /// Command inputs refused (not from the deployment's publisher, or out of sequence).
+    pub inputs_refused: u64,
 }

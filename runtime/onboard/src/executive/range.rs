@@ -205,6 +205,14 @@ impl Vlp16Sensor {
     }
 }
 
+impl Vlp16Sensor {
+    /// Takes packets only from the sensor's address (`lidar_sensor` in the deployment); other
+    /// senders' are dropped and counted (docs/security.md).
+    pub fn only_from(&mut self, sensor: std::net::IpAddr) {
+        self.source.only_from(sensor);
+    }
+}
+
 impl RangeSensor for Vlp16Sensor {
     fn poll(
         &mut self,
@@ -260,11 +268,12 @@ impl RangeSensor for Vlp16Sensor {
         let now_ns = u64::try_from(now.as_nanos()).unwrap_or(u64::MAX);
         let s = self.health.stats();
         format!(
-            "vlp16 {:?}: {} packets, rpm {:?}, {} socket errors",
+            "vlp16 {:?}: {} packets, rpm {:?}, {} socket errors, {} datagrams from other senders dropped",
             self.health.verdict(now_ns),
             s.packets,
             s.rpm,
-            self.io_errors
+            self.io_errors,
+            self.source.foreign_sender
         )
     }
 }

@@ -13,8 +13,7 @@ use can_bus::CanBus;
 use grop_clock::Clock;
 use grop_ipc::{
     ArmSafety, ArmStateMsg, BaseMode as IpcBaseMode, BasePoseMsg, BaseStateMsg, EventMsg,
-    HeartbeatMsg, IpcNode, OperatorEnableMsg, ProcessRole, ReplanRequestMsg, TaskPlanMsg,
-    TopicPublisher, TopicSubscriber,
+    HeartbeatMsg, IpcNode, ProcessRole, ReplanRequestMsg, TaskPlanMsg, TopicPublisher,
 };
 use rmp_base::{BaseError, CanLink, RmpBase, Tick};
 use rmp_codec::v3::OperationalState;
@@ -26,6 +25,7 @@ use motion_control::{Pose2, Twist};
 
 use super::base::BaseDevice;
 use super::cycle::{ArmCommand, BaseReading, CycleInputs, CycleOutputs};
+use super::inputs::{ExecutiveInputs, InputSources};
 use super::mission::{MissionCore, ns};
 use super::range::{MapOverhangs, RangeSensor};
 use super::unload::{self, ArmFault, SkillStatus, UnloadFailure};
@@ -51,15 +51,14 @@ pub struct ExecutivePorts {
     requests: TopicPublisher<ReplanRequestMsg>,
     loads: TopicPublisher<grop_ipc::LoadRequestMsg>,
     health: TopicPublisher<HeartbeatMsg>,
-    plans: TopicSubscriber<TaskPlanMsg>,
-    poses: TopicSubscriber<BasePoseMsg>,
-    peers: TopicSubscriber<HeartbeatMsg>,
-    enables: TopicSubscriber<OperatorEnableMsg>,
+    /// Plans, fixes and the planner's heartbeats, from the deployment's publishers only.
+    inputs: ExecutiveInputs,
 }
 
 impl ExecutivePorts {
-    /// Opens the executive's topics in `node`.
-    pub fn open(node: &IpcNode) -> Result<Self, ExecutiveError> {
+    /// Opens the executive's topics in `node`; its command inputs are accepted from the nodes
+    /// `sources` names.
+    pub fn open(node: &IpcNode, sources: &InputSources) -> Result<Self, ExecutiveError> {
         let e = |e: grop_ipc::PortError| ExecutiveError::Ipc(e.to_string());
         Ok(Self {
             base_state: node.publisher().map_err(e)?,
@@ -68,10 +67,7 @@ impl ExecutivePorts {
             requests: node.publisher().map_err(e)?,
             loads: node.publisher().map_err(e)?,
             health: node.publisher().map_err(e)?,
-            plans: node.subscriber().map_err(e)?,
-            poses: node.subscriber().map_err(e)?,
-            peers: node.subscriber().map_err(e)?,
-            enables: node.subscriber().map_err(e)?,
+            inputs: ExecutiveInputs::open(node, sources).map_err(e)?,
         })
     }
 }
@@ -177,7 +173,7 @@ impl<B: CanBus, A: ArmDevice> Executive<RmpBase<CanLink<B>>, A> {
         check_capacity(&config)?;
         let base = RmpBase::new(CanLink::new(bus), rmp_config(&config))
             .map_err(|e| ExecutiveError::BaseConfig(e.to_string()))?;
-        let ports = ExecutivePorts::open(node)?;
+        let ports = ExecutivePorts::open(node, &config.inputs)?;
         Executive::with_devices(config, clock, base, arm, ports, scene, objects)
     }
 }
@@ -330,6 +326,7 @@ impl<D: BaseDevice, A: ArmDevice> Executive<D, A> {
             unloads_ok: core.unloads_ok,
             unloads_failed: core.unloads_failed,
             plans: core.plans,
+            inputs_refused: self.ports.inputs.refused(),
             ..self.stats
         }
     }
@@ -462,22 +459,22 @@ impl<D: BaseDevice, A: ArmDevice> Executive<D, A> {
         if !base_cycle {
             return;
         }
-        self.fixes.clear();
-        while self.fixes.len() < MAX_FIXES_PER_CYCLE {
-            match self.ports.poses.try_recv() {
-                Ok(Some(fix)) => self.fixes.push(*fix),
-                _ => break,
-            }
-        }
+        // Only the deployment's publishers, in sequence (inputs.rs); refusals are reported.
+        let inputs = &mut self.ports.inputs;
+        inputs.read_fixes(now, &mut self.fixes, MAX_FIXES_PER_CYCLE);
+        self.planner_heartbeats = inputs.read_planner_heartbeats(now);
+        inputs.read_plans(now, &mut self.plans, MAX_PLANS_PER_CYCLE);
+        // The operator's enable, from the deployment's operator; taken only if given after
+        // this executive started (a restart is not an enable) and not in the future.
         self.operator_enable = false;
         let since = ns(self.started_at.unwrap_or(now));
         let latest = ns(now.saturating_add(Duration::from_millis(100)));
-        while let Ok(Some(enable)) = self.ports.enables.try_recv() {
+        while let Some(enable) = inputs.read_enable(now) {
             if (since..=latest).contains(&enable.stamp_ns) {
                 self.operator_enable = true;
             } else {
-                // A restart is not an enable: the newest enable (kept for late joiners) was
-                // given to the executive before this one, or the stamp lies.
+                // The newest enable (kept for late joiners) was given to the executive before
+                // this one, or the stamp lies.
                 self.enables_refused += 1;
                 log::warn!(
                     "operator enable #{} from pid {} stamped {:.3} s refused: not given after this executive started at {:.3} s (or in the future)",
@@ -488,20 +485,7 @@ impl<D: BaseDevice, A: ArmDevice> Executive<D, A> {
                 );
             }
         }
-        self.planner_heartbeats = 0;
-        while let Ok(Some(hb)) = self.ports.peers.try_recv() {
-            if hb.role() == Ok(ProcessRole::Planner) {
-                self.planner_heartbeats += 1;
-            }
-        }
-        self.plans.clear();
-        while let Ok(Some(plan)) = self.ports.plans.try_recv() {
-            if self.plans.len() == MAX_PLANS_PER_CYCLE {
-                // Newest last: drop the oldest.
-                self.plans.remove(0);
-            }
-            self.plans.push(*plan);
-        }
+        inputs.report_pending(now);
         if self.answer.is_none() {
             self.answer = match self.worker.try_answer() {
                 Some(Answer::Align(_, alignment, odom)) => {

@@ -506,8 +506,12 @@ fn replay_in(
                 mismatches: Arc::clone(&mismatches),
             };
             let arm = RecordingArm::new(arm, &node).map_err(at("the arm's log port"))?;
+            // The recorded fixes come from the replay's feeder.
+            let mut config = ExecutiveConfig::for_robot(&robot);
+            config.inputs.fixes = "replay-world".into();
+            config.inputs.operator = "replay-world".into();
             let mut exec = Executive::new(
-                ExecutiveConfig::for_robot(&robot),
+                config,
                 Arc::clone(&clock),
                 bus,
                 arm,
@@ -589,7 +593,12 @@ fn replay_in(
                         .and_then(|e| events.publish(&e).map(|_| ()).map_err(at(PUBLISH))),
                     Channel::OperatorEnable => codec::decode_enable(&m.data)
                         .map_err(at(DECODE))
-                        .and_then(|e| enables.publish(&e).map(|_| ()).map_err(at(PUBLISH))),
+                        .and_then(|mut e| {
+                            // The replay's feeder is the operator now (the executive checks
+                            // that an enable names its sender's process).
+                            e.pid = std::process::id();
+                            enables.publish(&e).map(|_| ()).map_err(at(PUBLISH))
+                        }),
                     _ => Ok(()),
                 };
                 if let Err(e) = published {
@@ -601,7 +610,7 @@ fn replay_in(
                 let enable = grop_ipc::OperatorEnableMsg {
                     seq: 1,
                     stamp_ns: now,
-                    pid: 0,
+                    pid: std::process::id(),
                     reserved: 0,
                 };
                 if let Err(e) = enables.publish(&enable) {
