@@ -31,6 +31,8 @@ mod can;
 mod ipc;
 #[cfg(feature = "lidar")]
 mod lidar;
+#[cfg(feature = "onboard")]
+mod mission_core;
 #[cfg(feature = "model")]
 mod model;
 #[cfg(feature = "ur5e")]
@@ -65,6 +67,8 @@ pub use can::{can_wire_frame, candump_text};
 pub use ipc::{camera_frame, ipc_messages};
 #[cfg(feature = "lidar")]
 pub use lidar::{HEADER_LEN as VLP16_HEADER_LEN, vlp16_packet};
+#[cfg(feature = "onboard")]
+pub use mission_core::mission_core;
 #[cfg(feature = "model")]
 pub use model::model_loader;
 #[cfg(feature = "onboard")]
@@ -116,6 +120,7 @@ pub fn targets() -> Vec<Target> {
     all.extend([
         ("deployment_file", deployment_file as fn(&[u8])),
         ("mission_log", mission_log),
+        ("mission_core", mission_core),
     ]);
     #[cfg(feature = "ipc")]
     all.extend([

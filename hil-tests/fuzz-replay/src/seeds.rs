@@ -702,6 +702,7 @@ pub fn seeds() -> Vec<(&'static str, Vec<Vec<u8>>)> {
         ("robot_file", robot_file()),
         ("deployment_file", deployment_file()),
         ("mission_log", mission_log()),
+        ("mission_core", crate::mission_core::seeds()),
         ("ipc_messages", ipc_messages()),
         ("camera_frame", camera_frame()),
         ("model_loader", model_loader()),
