@@ -64,6 +64,11 @@ pub struct CoreStats {
     pub stalls: u32,
     /// Scan-to-map alignments taken into the estimate.
     pub alignments: u32,
+    /// Velocities the core's own laws produced outside what the robot can do (not finite, or
+    /// above the robot file's speed or yaw rate: nonsense in an input) and that were cut to it.
+    pub bounded: u32,
+    /// Pose fixes refused for a pose off the map.
+    pub off_map_fixes: u32,
 }
 
 /// `robot` with its footprint grown by `margin_m` on every side.
@@ -349,12 +354,33 @@ impl MissionCore {
             self.base_loop(inputs, outputs);
             self.turn_the_other_way();
         }
+        self.velocity = self.within_limits(self.velocity);
         outputs.velocity = self.velocity;
         outputs.monitor_mode = if self.docking() {
             MonitorMode::Docking
         } else {
             MonitorMode::Normal
         };
+    }
+
+    /// `v` within what the robot can do: zero when not finite, cut to the robot file's speed
+    /// and yaw rate. The laws stay within them on sane inputs; this is the last check against
+    /// nonsense (an odometry of 1e308 m once made the follower command a NaN yaw rate).
+    fn within_limits(&mut self, v: Twist) -> Twist {
+        let speed = self.config.robot.speed_mps as f32;
+        let yaw = self.config.robot.yaw_rate_radps as f32;
+        let bounded = if v.is_finite() {
+            Twist::new(
+                v.speed_mps.clamp(-speed, speed),
+                v.yaw_rate_radps.clamp(-yaw, yaw),
+            )
+        } else {
+            Twist::ZERO
+        };
+        if bounded != v {
+            self.stats.bounded = self.stats.bounded.saturating_add(1);
+        }
+        bounded
     }
 
     fn arm_reading(&mut self, inputs: &CycleInputs<'_>, outputs: &mut CycleOutputs) {
@@ -440,6 +466,22 @@ impl MissionCore {
                 continue;
             }
             let Ok(pose) = fix.pose() else { continue };
+            if self.grid.cell_of(pose[0], pose[1]).is_none() {
+                // Off the map: nonsense whatever its stamp (the estimate would follow it there).
+                self.stats.off_map_fixes += 1;
+                if self.stats.off_map_fixes == 1 {
+                    self.event(
+                        EventKind::StaleInput,
+                        now,
+                        format_args!(
+                            "pose fix at ({:.3e}, {:.3e}) m off the map refused",
+                            pose[0], pose[1]
+                        ),
+                        outputs,
+                    );
+                }
+                continue;
+            }
             let pose = PlanarPose::new(pose[0], pose[1], pose[2]);
             let outcome = match fix.kind() {
                 Ok(PoseFixKind::Global) => {

@@ -481,6 +481,68 @@ fn a_failed_path_fails_the_leg_and_asks_for_a_new_plan() {
 }
 
 #[test]
+fn a_fix_off_the_map_is_refused_and_nonsense_odometry_commands_nothing_outside_the_limits() {
+    let mut b = driving();
+    // A fix 1e308 m away (finite, so it passes the message's checks): refused, reported once.
+    let far = BasePoseMsg::fix(
+        9_999,
+        super::ns(b.now),
+        PoseFixKind::Global,
+        [b.odo.x_m, -f64::MAX, b.odo.yaw_rad],
+        0.01,
+        0.01,
+    );
+    b.step(|i| i.fixes = std::slice::from_ref(&far));
+    assert_eq!(b.core.stats().off_map_fixes, 1);
+    assert!(
+        b.events
+            .iter()
+            .any(|(k, d)| *k == EventKind::StaleInput && d.contains("off the map")),
+        "{:?}",
+        b.events
+    );
+    assert!(b.core.estimate().y_m.abs() < 100.0);
+    // Fixes that follow such a pose (found by the mission_core fuzz target: the base's odometry
+    // and the fixes both at -1.8e308 m, and the follower commanded a NaN yaw rate): all refused,
+    // so the estimate goes stale and the base holds.
+    b.fixes_on = false;
+    for k in 0..60 {
+        b.odo.y_m = -f64::MAX;
+        let fix = BasePoseMsg::fix(
+            10_000 + k,
+            super::ns(b.now),
+            PoseFixKind::Global,
+            [b.odo.x_m, b.odo.y_m, b.odo.yaw_rad],
+            0.01,
+            0.01,
+        );
+        b.step(|i| i.fixes = std::slice::from_ref(&fix));
+        let v = b.out.velocity;
+        assert!(v.is_finite(), "{v:?}");
+        assert!(
+            v.speed_mps.abs() <= 0.4 && v.yaw_rate_radps.abs() <= 1.0,
+            "{v:?}"
+        );
+    }
+    assert_eq!(b.out.velocity, Twist::ZERO, "stale: holding");
+}
+
+#[test]
+fn a_velocity_outside_what_the_robot_can_do_never_leaves_the_core() {
+    let mut b = Bench::new();
+    // The last check of every update (the laws stay within the limits on sane inputs).
+    for (v, out) in [
+        (Twist::new(f32::NAN, 0.5), Twist::ZERO),
+        (Twist::new(0.1, f32::INFINITY), Twist::ZERO),
+        (Twist::new(9.0, -7.0), Twist::new(0.4, -1.0)),
+        (Twist::new(-0.3, 0.2), Twist::new(-0.3, 0.2)),
+    ] {
+        assert_eq!(b.core.within_limits(v), out, "{v:?}");
+    }
+    assert_eq!(b.core.stats().bounded, 3);
+}
+
+#[test]
 fn a_fix_stamped_in_the_future_is_refused_and_staleness_still_fires() {
     let mut b = driving();
     // A fix from 1 h in the future: before, it was taken and every later real fix was then
