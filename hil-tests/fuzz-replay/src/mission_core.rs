@@ -11,7 +11,10 @@
 //! the room), so the fuzzer reaches deep mission phases and then feeds them nonsense.
 //!
 //! Checked every cycle: no panic, and the velocity the core commands is finite and within the
-//! robot file's limits (|speed| <= `speed_mps`, |yaw rate| <= `yaw_rate_radps`).
+//! robot file's limits (|speed| <= `speed_mps`, |yaw rate| <= `yaw_rate_radps`). The core cuts
+//! its output to those limits as its last step (`CoreStats::bounded` counts when it had to);
+//! with `MISSION_CORE_STRICT=1` in the environment the target also fails when that cut acted,
+//! to hunt the input that made a law produce nonsense.
 
 use std::sync::{Arc, OnceLock};
 use std::time::Duration;
@@ -305,6 +308,11 @@ pub(crate) struct Summary {
     state: String,
 }
 
+fn strict() -> bool {
+    static STRICT: OnceLock<bool> = OnceLock::new();
+    *STRICT.get_or_init(|| std::env::var_os("MISSION_CORE_STRICT").is_some_and(|v| v == "1"))
+}
+
 fn run(data: &[u8]) -> Summary {
     let mut summary = Summary::default();
     let f = fixture();
@@ -534,6 +542,11 @@ fn run(data: &[u8]) -> Summary {
         assert!(
             v.speed_mps.abs() <= max_speed && v.yaw_rate_radps.abs() <= max_yaw,
             "velocity {v:?} outside the robot file's {max_speed} m/s, {max_yaw} rad/s"
+        );
+        assert!(
+            !strict() || core.stats().bounded == 0,
+            "the core's laws produced {:?} before the last cut (strict mode)",
+            core.velocity()
         );
         if let Some(j) = out.job {
             job = Some(j);
