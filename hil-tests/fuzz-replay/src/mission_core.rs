@@ -15,6 +15,7 @@
 //! its output to those limits as its last step (`CoreStats::bounded` counts when it had to);
 //! with `MISSION_CORE_STRICT=1` in the environment the target also fails when that cut acted,
 //! to hunt the input that made a law produce nonsense.
+#![allow(clippy::expect_used)] // a fuzz harness: its fixed setup is constant, and a panic is a finding
 
 use std::sync::{Arc, OnceLock};
 use std::time::Duration;
