@@ -636,7 +636,10 @@ retry = "replan"
         let bad = format!("{FULL}\n[inputs]\nplans = \"a b\"\n");
         let message = parse(&bad).unwrap_err().to_string();
         assert!(message.contains("`inputs.plans`"), "{message}");
-        let unknown = format!("{FULL}\n[inputs]\noperator = \"x\"\n");
+        let operator = format!("{FULL}\n[inputs]\noperator = \"world\"\n");
+        assert_eq!(parse(&operator).unwrap().inputs.operator, "world");
+        assert_eq!(d.inputs.operator, "grop-enable", "the default operator");
+        let unknown = format!("{FULL}\n[inputs]\ncamera = \"x\"\n");
         assert!(parse(&unknown).is_err());
     }
 
