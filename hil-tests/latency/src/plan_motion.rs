@@ -93,6 +93,7 @@ fn one(namespace: &str) -> anyhow::Result<Duration> {
     let mut deadline = begin;
     let mut next_fix = begin;
     let mut plan_at: Option<Duration> = None;
+    let mut enable_sent = false;
     loop {
         let now = clock.now();
         if now.saturating_sub(begin) > Duration::from_secs(20) {
@@ -140,7 +141,8 @@ fn one(namespace: &str) -> anyhow::Result<Duration> {
             }
         }
         exec.cycle(clock.now());
-        if now == begin {
+        if !enable_sent {
+            enable_sent = true;
             // The operator's enable, once the executive runs (a start is not an enable).
             enable.publish(&grop_ipc::OperatorEnableMsg {
                 seq: 1,
