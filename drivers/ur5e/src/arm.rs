@@ -371,6 +371,17 @@ pub enum GripperAction {
     Close,
 }
 
+impl GripperAction {
+    /// The gripper job that does it, each phase within `timeout` from `now` (caller's clock).
+    pub fn job(self, timeout: Duration, now: Duration) -> GripperJob {
+        match self {
+            GripperAction::Activate => GripperJob::activate(timeout, now),
+            GripperAction::Open => GripperJob::activate_and_move_to(0, 255, 128, timeout, now),
+            GripperAction::Close => GripperJob::activate_and_move_to(255, 255, 128, timeout, now),
+        }
+    }
+}
+
 /// What a finished skill achieved.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum SkillOutcome {
@@ -924,13 +935,14 @@ impl Ur5eArm {
         if self.gripper.is_none() {
             return Err(SkillError::NoGripper);
         }
-        let job = match action {
-            GripperAction::Activate => GripperJob::activate(timeout, now),
-            GripperAction::Open => GripperJob::activate_and_move_to(0, 255, 128, timeout, now),
-            GripperAction::Close => GripperJob::activate_and_move_to(255, 255, 128, timeout, now),
-        };
-        self.skill = Skill::Gripper(job);
+        self.skill = Skill::Gripper(action.job(timeout, now));
         Ok(())
+    }
+
+    /// Takes the gripper's connection out of the arm (to drive it from another thread with
+    /// [`GripperJob`]s); the arm's own gripper skill then answers [`SkillError::NoGripper`].
+    pub fn take_gripper(&mut self) -> Option<RobotiqGripper> {
+        self.gripper.take()
     }
 
     /// Judges the skill in progress on the state of the last [`Self::update_at`], at caller

@@ -15,7 +15,7 @@ use clap::Parser;
 use grop_onboard::deployment::{CanSpec, LidarSource};
 use grop_onboard::executive::arm_io::RecordingArm;
 use grop_onboard::executive::range::Vlp16Sensor;
-use grop_onboard::executive::ur5e_arm::{ArmMotionSettings, Ur5eDevice};
+use grop_onboard::executive::ur5e_arm::{ArmIoSettings, ArmMotionSettings, Ur5eDevice};
 use grop_onboard::executive::{Executive, ExecutiveConfig, MissionState};
 
 /// Rank of the executive on a simulated clock: after the planner at each instant.
@@ -82,13 +82,21 @@ fn main() -> anyhow::Result<()> {
         .with_context(|| format!("connecting the UR5e at {}", a.host))?;
     let node = grop_ipc::IpcNode::new(&deployment.namespace, "grop-executive")
         .context("joining the iceoryx2 namespace")?;
-    // Every arm call and its answer goes out on `arm/io` (the mission log's RTDE record).
-    let arm = RecordingArm::new(Ur5eDevice::new(arm, ArmMotionSettings::default()), &node)
-        .context("opening arm/io")?;
     let clock: Arc<dyn grop_clock::Clock> = Arc::from(
         grop_clock::open(&deployment.clock, "grop-executive", EXECUTIVE_CLOCK_RANK)
             .with_context(|| format!("opening clock {}", deployment.clock))?,
     );
+    // The arm's sockets on their own threads (the base loop never waits on them); every arm
+    // call and its answer goes out on `arm/io` (the mission log's RTDE record).
+    let motion = ArmMotionSettings::default();
+    let io = ArmIoSettings::for_clock(
+        clock.is_simulated(),
+        arm.config().stale_after,
+        &motion,
+        arm.config().io_timeout,
+    );
+    let arm = Ur5eDevice::new(arm, motion, io).context("starting the arm's I/O threads")?;
+    let arm = RecordingArm::new(arm, &node).context("opening arm/io")?;
     let config = ExecutiveConfig {
         inputs: deployment.inputs.clone(),
         ..ExecutiveConfig::for_robot(&robot)

@@ -37,6 +37,7 @@ pub mod arm_io;
 pub mod base;
 pub mod cycle;
 pub mod inputs;
+pub mod io_worker;
 pub mod legs;
 pub mod mission;
 pub mod motion_watch;
