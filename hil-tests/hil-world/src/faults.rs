@@ -48,7 +48,7 @@ pub enum FaultKind {
     CanSilent,
     /// The base reports a fault that stops motion (velocity control failed).
     BaseFaultWord,
-    /// The base's kill switch.
+    /// The base's kill switch, released 1 s later (then the operator enables).
     KillSwitch,
     /// Another host sends motion commands on the bus for 0.2 s.
     SecondCommander,
@@ -56,9 +56,9 @@ pub enum FaultKind {
     RtdeDrop,
     /// The controller stays connected but stops sending RTDE data.
     RtdeSilent,
-    /// A protective stop while the arm moves.
+    /// A protective stop while the arm moves, unlocked 1 s later (then the operator enables).
     ProtectiveStop,
-    /// An emergency stop while the arm moves.
+    /// An emergency stop while the arm moves, released 1 s later (then the operator enables).
     EmergencyStop,
     /// The arm's safeguard input opens for 2 s while the base drives (a person near the
     /// robot: UR safety mode 5), then closes again; the operator enables 1 s later.
@@ -67,8 +67,9 @@ pub enum FaultKind {
     GripperFault,
     /// The gripper stops answering (connection open).
     GripperTimeout,
-    /// Dashboard replies arrive 3 s late (longer than the client's 2 s deadline), and a
-    /// protective stop while the arm moves makes the executive call on the dashboard.
+    /// Dashboard replies arrive 3 s late (longer than the client's 2 s deadline), and the
+    /// RTDE link is cut while the arm moves: the driver's stop then goes out by URScript and
+    /// by the dashboard (whose reply never comes in time).
     DashboardLate,
     /// Camera frames with a corrupt header (row stride shorter than a row) for 3 s.
     CameraCorrupt,
@@ -134,6 +135,16 @@ impl FaultKind {
             FaultKind::LocalisationJump => "localisation-jump",
             FaultKind::CameraNarrow => "camera-narrow",
             FaultKind::SafeguardStop => "safeguard-stop",
+        }
+    }
+
+    /// How long after it struck the fault is released, for the kinds a person releases.
+    pub fn released_after(self) -> Option<Duration> {
+        match self {
+            FaultKind::KillSwitch | FaultKind::ProtectiveStop | FaultKind::EmergencyStop => {
+                Some(Duration::from_secs(1))
+            }
+            _ => None,
         }
     }
 
@@ -259,6 +270,26 @@ pub struct FaultRecord {
     /// CAN frames the injector dropped, duplicated, delayed, reordered, corrupted, sent as a
     /// second commander.
     pub can: CanFaultCounts,
+    /// First instant at or after the fault at which the simulated controller received a
+    /// program with a `stopj` (the onboard stop; the controller's own stops are not counted).
+    #[serde(default)]
+    pub arm_stop_asked_at_s: Option<f64>,
+    /// Dashboard `stop` commands the controller received after the fault.
+    #[serde(default)]
+    pub dashboard_stops: u64,
+    /// When the fault was released (an e-stop pulled out, the kill switch reset, a protective
+    /// stop unlocked), for the kinds that are.
+    #[serde(default)]
+    pub released_at_s: Option<f64>,
+    /// When the operator's enable was given after the release.
+    #[serde(default)]
+    pub enabled_after_release_at_s: Option<f64>,
+    /// Farthest the base moved from where it stood at the release, m (truth).
+    #[serde(default)]
+    pub base_moved_after_release_m: f64,
+    /// Farthest a joint moved from where it stood at the release, rad.
+    #[serde(default)]
+    pub arm_moved_after_release_rad: f64,
 }
 
 /// What the CAN injector did.

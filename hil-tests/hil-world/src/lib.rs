@@ -435,6 +435,15 @@ impl World {
             if let (Some(spec), Some(start)) = (cfg.fault, mission_start) {
                 self.inject(spec, &mut injector, now, start, &mut report);
             }
+            // The operator enables once a released fault is clear (a restart is not asked
+            // for: the test checks that nothing moves all the same).
+            if injector.enable_at.is_some_and(|t| now >= t) {
+                injector.enable_at = None;
+                enable_due = Some(now);
+                if let Some(rec) = report.fault.as_mut() {
+                    rec.enabled_after_release_at_s = Some(secs(now));
+                }
+            }
             // Devices.
             let limits = base_limits(self.base.sim());
             let bus = self.base.bus_mut();
@@ -486,6 +495,25 @@ impl World {
                     }
                     if rec.arm_stopped_at_s.is_none() && max_abs(&snap.qd) < 0.01 {
                         rec.arm_stopped_at_s = Some(secs(now));
+                    }
+                    let stops = self.arm.with_robot(|r| r.stops_asked());
+                    let before = injector.stops_at_fault;
+                    if rec.arm_stop_asked_at_s.is_none()
+                        && stops.stop_programs > before.stop_programs
+                    {
+                        rec.arm_stop_asked_at_s = Some(secs(now));
+                    }
+                    rec.dashboard_stops = stops.dashboard.saturating_sub(before.dashboard);
+                    if let Some((xy, q)) = injector.release_pose {
+                        let moved = (pose.x_m - xy[0]).hypot(pose.y_m - xy[1]);
+                        rec.base_moved_after_release_m = rec.base_moved_after_release_m.max(moved);
+                        let turned = snap
+                            .q
+                            .iter()
+                            .zip(q)
+                            .fold(0.0_f64, |m, (a, b)| m.max((a - b).abs()));
+                        rec.arm_moved_after_release_rad =
+                            rec.arm_moved_after_release_rad.max(turned);
                     }
                 }
             }
@@ -911,7 +939,10 @@ impl World {
             step_wall += work_started.elapsed();
             report.timing.steps += 1;
             if let Some(end) = ended_at {
-                if now >= end + cfg.linger {
+                // A fault a person releases: watched until 3 s after its release too.
+                let watched = injector.release_at.is_none()
+                    && injector.watch_until.is_none_or(|until| now >= until);
+                if now >= end + cfg.linger && watched {
                     break;
                 }
             }
@@ -1001,6 +1032,8 @@ impl World {
                 inj.base_speed,
                 inj.arm_speed
             );
+            inj.stops_at_fault = self.arm.with_robot(|r| r.stops_asked());
+            inj.release_at = spec.kind.released_after().map(|d| now + d);
             let bus = self.base.bus_mut();
             bus.mark();
             let links = self.arm.link_faults();
@@ -1046,8 +1079,10 @@ impl World {
                 // Overcurrent (Robotiq FLT 0x0E): a major fault, fingers stop.
                 FaultKind::GripperFault => self.arm.trigger_gripper_fault(0x0e),
                 FaultKind::GripperTimeout => links.gripper_muted.store(true, Relaxed),
-                // Replies late since the start; the stop makes the executive need one.
-                FaultKind::DashboardLate => self.arm.trigger_protective_stop("fault injection"),
+                // Replies late since the start; a lost link makes the driver's stop use it.
+                FaultKind::DashboardLate => {
+                    self.arm.cut_rtde_connections();
+                }
                 FaultKind::CameraCorrupt => {
                     inj.camera_corrupt_until = Some(now + Duration::from_secs(3));
                 }
@@ -1055,6 +1090,26 @@ impl World {
                 FaultKind::LocalisationJump => inj.fix_jump = true,
                 FaultKind::CameraNarrow => inj.camera_narrow = true,
             }
+        }
+        if inj.release_at.is_some_and(|t| now >= t) {
+            inj.release_at = None;
+            match spec.kind {
+                FaultKind::KillSwitch => self
+                    .base
+                    .sim_mut()
+                    .set_fault(rmp_codec::faults::KILL_SWITCH_ACTIVE, false),
+                FaultKind::ProtectiveStop => self.arm.with_robot(|r| r.unlock_protective_stop()),
+                FaultKind::EmergencyStop => self.arm.with_robot(|r| r.release_emergency_stop()),
+                _ => {}
+            }
+            let pose = self.base_pose();
+            inj.release_pose = Some(([pose.x_m, pose.y_m], self.arm.snapshot().q));
+            inj.enable_at = Some(now + Duration::from_millis(500));
+            inj.watch_until = Some(now + Duration::from_secs(3));
+            if let Some(rec) = report.fault.as_mut() {
+                rec.released_at_s = Some(secs(now));
+            }
+            println!("[{:7.2} s] world: {spec} released", secs(now));
         }
         if inj.safeguard_until.is_some_and(|until| now >= until) {
             inj.safeguard_until = None;
@@ -1115,6 +1170,16 @@ struct Injector {
     safeguard_until: Option<Duration>,
     fix_jump: bool,
     jump: Option<()>,
+    /// The stops the controller had been asked for when the fault struck.
+    stops_at_fault: sim_ur5e::robot::StopsAsked,
+    /// The fault is released then (kinds a person releases).
+    release_at: Option<Duration>,
+    /// Where the base (world x, y) and the arm stood at the release.
+    release_pose: Option<([f64; 2], ur5e_kin::Joints)>,
+    /// The operator enables then (after a release).
+    enable_at: Option<Duration>,
+    /// The mission is watched until then (after a release).
+    watch_until: Option<Duration>,
 }
 
 impl Injector {

@@ -106,6 +106,10 @@ fn a_silent_gripper_does_not_hold_up_the_cycle() {
     });
     let (at, result) = ended.expect("the gripper skill ended");
     let silent = at - started.unwrap();
+    eprintln!(
+        "silent gripper: fault after {silent:?}, {running_cycles} cycles meanwhile, longest cycle's arm calls {longest:?}, late answers {:?}",
+        dev.late_answers()
+    );
     assert_eq!(result, Err(ArmFault::GripperFault));
     // The gripper really was waited on for its reply timeout (2 s) ...
     assert!(
@@ -158,6 +162,10 @@ fn a_lost_link_with_a_silent_dashboard_does_not_hold_up_the_cycle() {
     });
     let cut = cut_at.expect("cut");
     let lost = lost_at.expect("the lost link was reported");
+    eprintln!(
+        "lost link, dashboard silent: reported {:?} after the cut, longest cycle's arm calls {longest:?}",
+        lost - cut
+    );
     // Reported within the cycle's own staleness bound, not after the dashboard's 2 s.
     assert!(
         lost - cut <= stale_after + Duration::from_millis(200),
@@ -298,6 +306,10 @@ fn the_base_loop_keeps_its_pace_while_the_arm_link_is_lost_and_the_dashboard_is_
         .map(|w| (w[1] - w[0], w[0]))
         .max()
         .unwrap();
+    eprintln!(
+        "base loop: {} frames after 0.5 s, longest gap {gap:?} from {at:?}, RTDE cut at {cut:?}",
+        window.len()
+    );
     assert!(
         gap <= GAP_BOUND,
         "no base command for {gap:?} from {at:?} (the RTDE link was cut at {cut:?})"

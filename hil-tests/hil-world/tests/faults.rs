@@ -167,6 +167,61 @@ fn arm_stopped_within(rec: &FaultRecord, limit_s: f64) {
     );
 }
 
+/// The executive asked the controller for a stop (a `stopj` program: its own reaction, not
+/// the controller's) within `limit_s` of the fault.
+fn arm_stop_asked_within(rec: &FaultRecord, limit_s: f64) {
+    let at = rec.injected_at_s.expect("injected");
+    let asked = rec
+        .arm_stop_asked_at_s
+        .expect("the executive asked the controller to stop the arm")
+        - at;
+    assert!(
+        asked <= limit_s,
+        "the stop was asked {asked:.3} s after the fault (limit {limit_s:.3} s)"
+    );
+}
+
+/// The fault was released, the operator enabled, and nothing moved: the mission had ended
+/// (a safety stop latches: no enable restarts it), the commands stayed zero from before the
+/// release, the base and the arm stood where they were.
+fn nothing_moves_after_the_release(report: &WorldReport, rec: &FaultRecord) {
+    let released = rec.released_at_s.expect("the fault was released");
+    let enabled = rec
+        .enabled_after_release_at_s
+        .expect("the operator enabled after the release");
+    let zero = rec
+        .commanded_zero_at_s
+        .expect("the executive ended on zero commands");
+    assert!(
+        zero <= released,
+        "commands zero for good only from {zero:.3} s (released at {released:.3} s)"
+    );
+    assert!(
+        rec.base_moved_after_release_m < 0.005,
+        "the base moved {:.4} m after the release",
+        rec.base_moved_after_release_m
+    );
+    assert!(
+        rec.arm_moved_after_release_rad < 0.01,
+        "the arm moved {:.4} rad after the release",
+        rec.arm_moved_after_release_rad
+    );
+    assert!(
+        matches!(report.end, MissionEnd::Aborted),
+        "{:?}",
+        report.end
+    );
+    assert!(
+        report.timing.sim_time_s > enabled + 2.0,
+        "watched only {:.2} s after the enable",
+        report.timing.sim_time_s - enabled
+    );
+    println!(
+        "released at {released:.3} s, enabled at {enabled:.3} s, watched to {:.3} s: base moved {:.4} m, arm {:.4} rad",
+        report.timing.sim_time_s, rec.base_moved_after_release_m, rec.arm_moved_after_release_rad
+    );
+}
+
 /// The robot file's deceleration ramp from `speed`, s (the driver's limiter).
 fn ramp(speed: f64) -> f64 {
     speed / RobotConfig::default().accel_mps2
@@ -269,6 +324,7 @@ fn the_kill_switch_stops_the_base_and_the_mission() {
     aborted_for(&report, "BaseFault");
     commands_zero_within(&rec, 2.0 * BASE_PERIOD_S + SLACK_S);
     base_stopped_within(&rec, rec.base_speed_then_mps / BASE_OWN_DECEL + SLACK_S);
+    nothing_moves_after_the_release(&report, &rec);
 }
 
 #[test]
@@ -300,6 +356,8 @@ fn rtde_dropped_mid_motion_stops_the_arm_and_aborts() {
     // The RTDE watchdog in the UR program stops the arm after 0.1 s without input; the driver
     // notices no state for 100 ms and the executive aborts.
     aborted_for(&report, "ArmLinkLost");
+    // The driver's own stop (`stopj` over URScript), not only the controller's watchdog.
+    arm_stop_asked_within(&rec, 0.1 + SLACK_S);
     arm_stopped_within(&rec, 0.1 + arm_stop_s(&rec) + 2.0 * SLACK_S);
     assert!(rec.base_stopped_at_s.is_some());
 }
@@ -309,6 +367,7 @@ fn a_connected_but_silent_controller_is_noticed_and_the_arm_stops() {
     let (report, rec) = with_fault("f-rtde-silent", 4, "rtde-silent");
     // No state for 100 ms: the driver reports the link lost although the socket is open.
     aborted_for(&report, "ArmLinkLost");
+    arm_stop_asked_within(&rec, 0.1 + SLACK_S);
     arm_stopped_within(&rec, 0.1 + arm_stop_s(&rec) + 2.0 * SLACK_S);
 }
 
@@ -316,14 +375,19 @@ fn a_connected_but_silent_controller_is_noticed_and_the_arm_stops() {
 fn a_protective_stop_aborts_the_mission() {
     let (report, rec) = with_fault("f-pstop", 4, "protective-stop");
     aborted_for(&report, "ArmStopped");
+    // The controller brakes by itself; the executive's stop follows in the same cycle.
+    arm_stop_asked_within(&rec, SLACK_S);
     arm_stopped_within(&rec, arm_stop_s(&rec) + SLACK_S);
+    nothing_moves_after_the_release(&report, &rec);
 }
 
 #[test]
 fn an_emergency_stop_aborts_the_mission() {
     let (report, rec) = with_fault("f-estop", 4, "emergency-stop");
     aborted_for(&report, "ArmStopped");
+    arm_stop_asked_within(&rec, SLACK_S);
     arm_stopped_within(&rec, arm_stop_s(&rec) + SLACK_S);
+    nothing_moves_after_the_release(&report, &rec);
 }
 
 /// The arm's emergency stop while the base drives: the controller stops only the arm; the
@@ -335,6 +399,7 @@ fn an_arm_emergency_stop_while_the_base_drives_stops_the_base() {
     assert!(rec.base_speed_then_mps > 0.1, "{rec:?}");
     commands_zero_within(&rec, 2.0 * BASE_PERIOD_S + SLACK_S + 0.4 / 0.5);
     base_stopped_within(&rec, 2.0 * BASE_PERIOD_S + SLACK_S + 0.4 / 0.5);
+    nothing_moves_after_the_release(&report, &rec);
 }
 
 #[test]
@@ -418,10 +483,18 @@ fn an_unanswering_gripper_times_out_and_is_reported() {
 #[test]
 fn a_late_dashboard_does_not_hold_up_a_stop() {
     let (report, rec) = with_fault("f-dashboard", 4, "dashboard-late");
-    // The stop goes over RTDE and URScript first; the dashboard's `stop` times out after its
-    // own deadline, and the arm (stopped by the controller) and the abort do not wait on it.
-    aborted_for(&report, "ArmStopped");
-    arm_stopped_within(&rec, arm_stop_s(&rec) + SLACK_S);
+    // The RTDE link is cut with the dashboard late: the driver's stop goes out by URScript
+    // first, then by the dashboard (whose reply misses its deadline); the abort and the stop
+    // do not wait on it. (On this simulated clock time stands while the executive waits; that
+    // the wait holds up no cycle on the wall clock is `arm_io_off_cycle.rs`.)
+    aborted_for(&report, "ArmLinkLost");
+    arm_stop_asked_within(&rec, 0.1 + SLACK_S);
+    assert!(
+        rec.dashboard_stops >= 1,
+        "the dashboard was not on the stop path: {rec:?}"
+    );
+    arm_stopped_within(&rec, 0.1 + arm_stop_s(&rec) + 2.0 * SLACK_S);
+    assert!(rec.base_stopped_at_s.is_some());
 }
 
 // ---- perception, localisation, time --------------------------------------------------------

@@ -339,6 +339,18 @@ pub struct RobotModel {
     out_int: [i32; OUTPUT_REGISTERS],
     out_double: [f64; OUTPUT_REGISTERS],
     next_session: u64,
+    stops_asked: StopsAsked,
+}
+
+/// Stops asked of the controller from outside, counted as they arrive (whether or not the
+/// controller could act on them): what a test reads to tell the onboard reaction from the
+/// controller's own.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct StopsAsked {
+    /// Programs with a `stopj` / `stopl` (the driver's stop).
+    pub stop_programs: u64,
+    /// Dashboard `stop` commands.
+    pub dashboard: u64,
 }
 
 fn pose_to_iso(p: &[f64; 6]) -> Isometry3<f64> {
@@ -376,6 +388,7 @@ impl RobotModel {
             motion: Motion::Idle,
             running: None,
             last_program: None,
+            stops_asked: StopsAsked::default(),
             watchdog: None,
             speed_scaling: 1.0,
             speed_fraction: 1.0,
@@ -463,6 +476,13 @@ impl RobotModel {
 
     /// Starts a program received on a script port; it replaces the running one (G-SCRIPT).
     pub fn load_program(&mut self, program: Program) {
+        if program
+            .statements
+            .iter()
+            .any(|s| matches!(s, Statement::StopJ { .. } | Statement::StopL { .. }))
+        {
+            self.stops_asked.stop_programs += 1;
+        }
         if program.secondary {
             // `sec` programs run beside the main program: apply their instant statements now.
             for s in &program.statements {
@@ -546,6 +566,17 @@ impl RobotModel {
         }
     }
 
+    /// The stops asked from outside so far.
+    pub fn stops_asked(&self) -> StopsAsked {
+        self.stops_asked
+    }
+
+    /// Dashboard `stop`: counted, then [`Self::stop_program`].
+    pub fn dashboard_stop(&mut self) {
+        self.stops_asked.dashboard += 1;
+        self.stop_program("dashboard stop");
+    }
+
     /// Dashboard `stop` (and the watchdog's stop action): ends the program, decelerates.
     pub fn stop_program(&mut self, reason: &str) {
         if let Some(r) = self.running.take() {
@@ -598,6 +629,16 @@ impl RobotModel {
         if self.safety_mode == 5 {
             self.safety_mode = 1;
             self.log(3, "safeguard stop released".into());
+        }
+    }
+
+    /// The emergency stop released (the button pulled out, the reset pressed): normal safety
+    /// mode, the arm powered off, as a real controller leaves it.
+    pub fn release_emergency_stop(&mut self) {
+        if self.safety_mode == 7 {
+            self.safety_mode = 1;
+            self.power_off();
+            self.log(3, "emergency stop released; power off".into());
         }
     }
 

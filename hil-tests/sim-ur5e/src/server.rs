@@ -834,7 +834,7 @@ fn dashboard_reply(shared: &Arc<Shared>, command: &str, loaded: &mut Option<Stri
             }
         }
         "stop" => {
-            robot.stop_program("dashboard stop");
+            robot.dashboard_stop();
             "Stopped".into()
         }
         "pause" => {
