@@ -16,6 +16,10 @@
 //! - per-sender state is a fixed-size table ([`PEERS_PER_NODE`] x `max_nodes` senders, the least
 //!   recently heard evicted and counted in [`VirtualCanBus::evicted_peer_count`]) with wrapping
 //!   sequence arithmetic, since keys and sequence numbers come from other processes.
+#![allow(
+    unsafe_code,
+    reason = "one libc call on the bus's own sockets (see the SAFETY comment)"
+)]
 
 use std::cmp::Reverse;
 use std::collections::BinaryHeap;

@@ -26,6 +26,10 @@
 //! println!("{}", stats.summary());
 //! # Ok::<(), grop_clock::rt::RtSpecError>(())
 //! ```
+#![allow(
+    unsafe_code,
+    reason = "mlockall, sched_setscheduler, sched_setaffinity, mallopt, getrlimit: the real-time settings"
+)]
 
 use core::fmt;
 use std::str::FromStr;

@@ -2,6 +2,10 @@
 //! binaries (`grop-planner`, `grop-executive`), started with names and ports that belong to
 //! this run only, so that missions run side by side and leftovers of crashed runs do not
 //! collide. Used by `grop demo`, `grop hil` and the closed-loop tests.
+#![allow(
+    unsafe_code,
+    reason = "libc::kill sends SIGTERM to the processes a mission started"
+)]
 
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};

@@ -26,6 +26,10 @@
 //! Two reader modes: *polling* (the reader spins on `receive` / non-blocking `read`) and
 //! *sleeping* (iceoryx2 readers sleep in `ppoll` on the event service's listener and the
 //! publisher notifies after sending; socket readers block in `read`).
+#![allow(
+    unsafe_code,
+    reason = "raw iceoryx2 loans written in place: the baseline row the product's path is compared with"
+)]
 
 use std::io::{Read, Write};
 use std::mem::MaybeUninit;

@@ -42,6 +42,10 @@
 //! cut_view(&frame, &FrameLayout::rgb8(camera), scene.targets[0].x_m, Side::Far, &mut crop)?;
 //! # Ok::<(), world::camera::CameraError>(())
 //! ```
+#![allow(
+    unsafe_code,
+    reason = "AVX2 gathers of the view cuts, behind runtime feature detection"
+)]
 
 use crate::geometry::OrientedRect;
 use crate::scene::Scene;
