@@ -299,6 +299,10 @@ impl VirtualCanBus {
     }
 
     /// Like [`join`](Self::join) with explicit sizes; all nodes of a bus must use the same.
+    #[allow(
+        clippy::too_many_lines,
+        reason = "the join handshake step by step, each failure named where it happens"
+    )]
     pub fn join_with_config(
         bus_name: &str,
         node_name: &str,

@@ -108,6 +108,10 @@ impl RtSettings {
     /// | `slack=NS` | timer slack in ns (>= 1) |
     /// | `fifo=PRIO` | `SCHED_FIFO` at 1..=99 |
     /// | `cpu=N` | pin to CPU N |
+    #[allow(
+        clippy::too_many_lines,
+        reason = "one arm per setting of the spec string"
+    )]
     pub fn parse(spec: &str) -> Result<Self, RtSpecError> {
         let spec = spec.trim();
         if spec.is_empty() {

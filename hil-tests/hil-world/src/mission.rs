@@ -420,6 +420,10 @@ impl Drop for RunningMission {
 
 /// Starts the world, waits for its ready line, then starts the planner and the executive
 /// against it.
+#[allow(
+    clippy::too_many_lines,
+    reason = "starts a mission's processes in order, each failure naming its step"
+)]
 pub fn start(spec: &MissionSpec, bins: &Binaries) -> anyhow::Result<RunningMission> {
     std::fs::create_dir_all(&spec.dir)
         .with_context(|| format!("creating {}", spec.dir.display()))?;

@@ -3,6 +3,10 @@
 //! mission, with a counting allocator proving that no cycle allocates after start-up, and the
 //! safety reactions to a silent base, a dead planner and missing localisation.
 #![allow(
+    clippy::too_many_lines,
+    reason = "a test scenario (or the fuzz harness's) reads top to bottom as one story"
+)]
+#![allow(
     unsafe_code,
     reason = "a counting GlobalAlloc proves no cycle allocates"
 )]

@@ -386,6 +386,10 @@ impl Drop for SocketFile {
 }
 
 /// Runs the measurement against a peer started from `peer_exe`.
+#[allow(
+    clippy::too_many_lines,
+    reason = "one benchmark: setup, the measured loop, the statistics"
+)]
 pub fn measure(peer_exe: &Path, config: &CameraConfig) -> Result<CameraResult, BenchError> {
     let service = names::unique("cam");
     let namespace = names::unique("ipc");
@@ -554,6 +558,10 @@ impl Reader<'_> {
     }
 
     /// Asks the peer for one frame on `transport` and waits for it as `mode` says.
+    #[allow(
+        clippy::too_many_lines,
+        reason = "one benchmark row: the same steps for each way of writing a frame"
+    )]
     fn frame(
         &mut self,
         peer: &mut Peer,

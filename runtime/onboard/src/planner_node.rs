@@ -604,6 +604,10 @@ impl PlannerNode {
     }
 
     /// Cut + Psi + planner over the objects of `objects_mask` from the request's pose.
+    #[allow(
+        clippy::too_many_lines,
+        reason = "one request planned in order: frame, problem, method, checks, message"
+    )]
     fn plan_and_publish(
         &mut self,
         request: &ReplanRequestMsg,
@@ -849,6 +853,10 @@ impl PlannerNode {
     /// unload per object. Returns the steps, (F, C, U) of the steps (C = the sum of their legs,
     /// U = R F - C) and `Fea^t` per location in `objects` order.
     #[allow(clippy::type_complexity)]
+    #[allow(
+        clippy::too_many_lines,
+        reason = "one multi-trip request planned in order: frame, problem, trips, checks, message"
+    )]
     fn plan_trips(
         &mut self,
         objects: &[usize],

@@ -1,5 +1,9 @@
 //! The planner node in-process: a rendered camera frame and replan requests go in over iceoryx2
 //! (unique namespace per test), the task plan, heatmaps and heartbeats come out.
+#![allow(
+    clippy::too_many_lines,
+    reason = "a test scenario (or the fuzz harness's) reads top to bottom as one story"
+)]
 #![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failure panics with its message
 
 use std::sync::Arc;

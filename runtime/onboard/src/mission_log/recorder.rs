@@ -159,6 +159,7 @@ impl Recorder {
 
     /// Takes everything published since the last call and queues it with log time `now_ns`.
     /// Returns how many messages it took.
+    #[allow(clippy::too_many_lines, reason = "one entry per logged topic")]
     pub fn drain(&mut self, now_ns: u64) -> usize {
         let e = &mut self.receive_errors;
         // Inputs of the onboard processes first, then what they made of them.
