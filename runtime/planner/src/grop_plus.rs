@@ -26,95 +26,16 @@
 //! # Ok(()) }
 //! ```
 
+use crate::config::{GoalSource, MethodKind, NavGoal, PlannerConfig};
+pub use crate::config::{GropPlusConfig, MAX_RETRIES, R_REFERENCE_SPEED_MPS, effective_r};
 use crate::costs::TravelTime;
-use crate::methods::{GoalSource, NavGoal, PlannerConfig};
 use crate::problem::{CANDIDATE_CELLS, TaskProblem, UnloadLocation};
 use crate::task::location_index;
 use world::Side;
 
-/// Speed at which `R` keeps its configured value when [`GropPlusConfig::r_follows_speed`] is on:
-/// the authors' 0.4 m/s, where R = 40 was chosen.
-pub const R_REFERENCE_SPEED_MPS: f64 = 0.4;
-
-/// Most retries a configuration may ask for.
-pub const MAX_RETRIES: usize = 8;
-
-/// GROP+'s levers. [`GropPlusConfig::DEFAULT`] is the combination chosen by measurement
-/// (docs/experiments.md, "GROP+").
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct GropPlusConfig {
-    /// Retries after a failed unload (0: none, as GROP).
-    pub max_retries: usize,
-    /// `Smp` draws per (target, side), keeping the best; `None`: GROP's
-    /// ([`PlannerConfig::goal_draws`]).
-    pub goal_draws: Option<usize>,
-    /// Goals only on cells at least this far (m) from every candidate cell where the base would
-    /// collide (0: off). When no cell of a location clears the margin with a nonzero heatmap
-    /// value, the location falls back to GROP's cells.
-    pub goal_margin_m: f64,
-    /// `R` scaled by [`R_REFERENCE_SPEED_MPS`] / speed.
-    pub r_follows_speed: bool,
-}
-
-impl GropPlusConfig {
-    /// Every lever off: GROP.
-    pub const OFF: GropPlusConfig = GropPlusConfig {
-        max_retries: 0,
-        goal_draws: None,
-        goal_margin_m: 0.0,
-        r_follows_speed: false,
-    };
-
-    /// The default GROP+, chosen by measurement on the 4,200-task set (docs/experiments.md,
-    /// "GROP+"): one retry, best of 20 draws, goals 0.2 m (two noise sigmas) clear of collision
-    /// cells. A second retry places more (hard third 0.94 vs 0.91) but costs more time than GROP
-    /// on the hard third; fewer draws or a smaller margin cost time too. R following speed stays
-    /// off: it changes nothing at 0.4 m/s and only moves completion between the slow and the
-    /// fast end of the sweep (+0.015 at 0.2 m/s, -0.018 at 0.8 m/s).
-    pub const DEFAULT: GropPlusConfig = GropPlusConfig {
-        max_retries: 1,
-        goal_draws: Some(20),
-        goal_margin_m: 0.2,
-        r_follows_speed: false,
-    };
-
-    /// Checks the values a user can set.
-    pub fn check(&self) -> Result<(), &'static str> {
-        if self.max_retries > MAX_RETRIES {
-            return Err("GROP+ retries must be at most 8");
-        }
-        if self.goal_draws.is_some_and(|n| n == 0 || n > 64) {
-            return Err("GROP+ goal draws must be in 1..=64");
-        }
-        if !(self.goal_margin_m.is_finite() && (0.0..=1.0).contains(&self.goal_margin_m)) {
-            return Err("GROP+ goal margin must be in 0..=1 m");
-        }
-        Ok(())
-    }
-
-    /// The planner settings GROP+ plans with: GROP's with the goal draws and `R` of the levers.
-    pub fn effective(&self, base: &PlannerConfig) -> PlannerConfig {
-        PlannerConfig {
-            goal_draws: self.goal_draws.unwrap_or(base.goal_draws),
-            success_bonus_r: effective_r(base, self.r_follows_speed),
-            ..*base
-        }
-    }
-}
-
 impl Default for GropPlusConfig {
     fn default() -> Self {
         Self::DEFAULT
-    }
-}
-
-/// `R` of eq. 1 at the configured speed: as configured, or scaled by
-/// [`R_REFERENCE_SPEED_MPS`] / speed when it follows speed.
-pub fn effective_r(config: &PlannerConfig, follows_speed: bool) -> f64 {
-    if follows_speed {
-        config.success_bonus_r * R_REFERENCE_SPEED_MPS / config.speed_mps
-    } else {
-        config.success_bonus_r
     }
 }
 
@@ -133,7 +54,7 @@ pub fn clear_of_obstacles(loc: &UnloadLocation, margin_m: f64) -> [bool; CANDIDA
 }
 
 /// The heatmap GROP+ reads for a location (goal draws, `Fea^t`, retries): GROP's (`grop_heat`,
-/// see [`crate::methods::location_heat`]) zeroed on the cells within the goal margin of a
+/// see [`location_heat`]) zeroed on the cells within the goal margin of a
 /// collision cell, unless that leaves nothing.
 pub fn plus_heat(
     plus: &GropPlusConfig,
@@ -185,11 +106,7 @@ pub fn retry_goal(
     for side in Side::BOTH {
         let index = location_index(object, side);
         let loc = &problem.locations[index];
-        let heat = plus_heat(
-            &plus,
-            loc,
-            crate::methods::location_heat(crate::methods::MethodKind::Grop, config, loc),
-        );
+        let heat = plus_heat(&plus, loc, location_heat(MethodKind::Grop, config, loc));
         let cell = (0..CANDIDATE_CELLS)
             .filter(|&i| heat[i] > 0.0)
             .filter(|&i| {
@@ -221,4 +138,26 @@ pub fn retry_goal(
         }
     }
     best.filter(|(u, _)| *u > 0.0).map(|(_, g)| g)
+}
+
+/// The heatmap `method` reads for a location (goal draws and `Fea^t`): as predicted, or, for GROP
+/// and GROP+ with [`PlannerConfig::free_goals_only`], zero on the cells where the base collides;
+/// GROP+ then also applies its goal margin ([`plus_heat`]).
+pub fn location_heat(
+    method: MethodKind,
+    config: &PlannerConfig,
+    loc: &UnloadLocation,
+) -> [f32; CANDIDATE_CELLS] {
+    let mut heat = loc.heat;
+    if config.free_goals_only && method.uses_smp_goals() {
+        for (h, c) in heat.iter_mut().zip(&loc.cells) {
+            if !c.free {
+                *h = 0.0;
+            }
+        }
+    }
+    if method == MethodKind::GropPlus {
+        heat = plus_heat(&config.plus, loc, heat);
+    }
+    heat
 }

@@ -23,6 +23,7 @@
 //! # Ok(()) }
 //! ```
 pub mod arm;
+pub mod config;
 pub mod costs;
 pub mod feasibility;
 pub mod grop_plus;

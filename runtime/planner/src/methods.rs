@@ -25,198 +25,16 @@ use rand_chacha::ChaCha8Rng;
 use world::Side;
 use world::generate::mix_seed;
 
+pub use crate::config::{
+    BaselineGoals, GoalSource, MethodKind, NavGoal, PlannerConfig, SearchMode,
+};
 use crate::costs::{LegCache, NavNode, StraightLine, TravelTime};
-use crate::grop_plus::GropPlusConfig;
+pub use crate::grop_plus::location_heat;
 use crate::problem::{CANDIDATE_CELLS, ProblemError, TaskProblem, UnloadLocation, candidate_index};
 use crate::task::{
     MAX_OBJECTS, PlanningTable, TaskPlan, TaskPlanError, UnloadStep, location_index, optimise,
     satisficing_plans_shared,
 };
-
-/// The planning methods compared in the paper.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
-pub enum MethodKind {
-    /// GROP+: GROP with the levers of [`crate::grop_plus`] (retries, best-of-n draws, goal
-    /// margin, R following speed); the planner's default. Not the paper's algorithm.
-    GropPlus,
-    /// GROP (ours, Algorithm 1).
-    Grop,
-    /// Satisficing: any valid plan, no costs, equal feasibility.
-    Satisficing,
-    /// PETLON: cost-optimal task plan, no feasibility.
-    Petlon,
-    /// DVH: feasibility-optimal, no costs.
-    Dvh,
-    /// FCN-Planning: GROP's utility with uniform goal choice.
-    FcnPlanning,
-}
-
-impl MethodKind {
-    /// All methods, GROP+ and GROP first.
-    pub const ALL: [MethodKind; 6] = [
-        MethodKind::GropPlus,
-        MethodKind::Grop,
-        MethodKind::Satisficing,
-        MethodKind::Petlon,
-        MethodKind::Dvh,
-        MethodKind::FcnPlanning,
-    ];
-
-    /// Name used in tables and on the command line.
-    pub fn name(self) -> &'static str {
-        match self {
-            MethodKind::GropPlus => "GROP+",
-            MethodKind::Grop => "GROP",
-            MethodKind::Satisficing => "Satisficing",
-            MethodKind::Petlon => "PETLON",
-            MethodKind::Dvh => "DVH",
-            MethodKind::FcnPlanning => "FCN-Planning",
-        }
-    }
-
-    /// Parses a name case-insensitively (`grop+` or `grop-plus`, `grop`, `satisficing`, `petlon`,
-    /// `dvh`, `fcn-planning`).
-    pub fn parse(name: &str) -> Option<MethodKind> {
-        let n = name.trim().to_ascii_lowercase().replace('_', "-");
-        if n == "grop-plus" || n == "gropplus" {
-            return Some(MethodKind::GropPlus);
-        }
-        MethodKind::ALL
-            .into_iter()
-            .find(|m| m.name().to_ascii_lowercase() == n)
-    }
-
-    /// Does the method choose goals from the heatmap with `Smp`?
-    pub fn uses_smp_goals(self) -> bool {
-        matches!(self, MethodKind::Grop | MethodKind::GropPlus)
-    }
-}
-
-/// How the baselines choose navigation goals.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub enum BaselineGoals {
-    /// The paper: uniform among the obstacle-free cells of the candidate area.
-    #[default]
-    Paper,
-    /// The authors' code: uniform among cells with a nonzero heatmap value; Satisficing uniform
-    /// in a fixed, scene-independent region (the middle 12 x 4 cells of the candidate area).
-    AuthorsCode,
-}
-
-/// How the utility-based methods search the plan space.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub enum SearchMode {
-    /// Enumerate when there are at most 4 objects (9216 plans), else the exact optimiser.
-    #[default]
-    Auto,
-    /// Enumerate every satisficing plan (at most [`crate::task::MAX_ENUMERATED_OBJECTS`] objects); the
-    /// decision lists every plan's F, C and U.
-    Enumerate,
-    /// The exact optimiser ([`optimise`]).
-    Exact,
-}
-
-/// Planner settings. `Default` is the paper's GROP on the paper's robot, except that GROP draws its goals
-/// over obstacle-free cells only ([`PlannerConfig::free_goals_only`]; `false` is the paper).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct PlannerConfig {
-    /// Success bonus `R` of eq. 1 (paper: 40).
-    pub success_bonus_r: f64,
-    /// Sum (paper) or product of the pairs' feasibilities.
-    pub aggregation: FeasibilityAggregation,
-    /// Number of `Smp` draws per (target, side), keeping the best (paper: 1).
-    pub goal_draws: usize,
-    /// How the utility methods search.
-    pub search: SearchMode,
-    /// Cost of a leg the navigation planner finds no path for (s); the evaluation charges a
-    /// failed navigation 60 s.
-    pub no_path_cost_s: f64,
-    /// Cruise speed (m/s) used for PETLON's optimistic straight-line costs; must match the
-    /// travel-time oracle's speed.
-    pub speed_mps: f64,
-    /// Baselines' goal choice.
-    pub baseline_goals: BaselineGoals,
-    /// GROP and FCN-Planning: cost legs lazily, PETLON-style (optimistic straight-line costs,
-    /// refined by the motion planner only for the current best plan until it is stable). Same
-    /// argmax as costing every leg (utilities under optimistic costs are upper bounds), far fewer
-    /// motion-planner calls for many objects; the decision's candidate list then holds optimistic
-    /// costs for plans that were never best. Off by default (the paper costs every leg).
-    pub lazy_costs: bool,
-    /// GROP: read the heatmap only over the obstacle-free candidate cells (where the base,
-    /// commanded there facing the table, fits the map). Smp then never sends the base to a goal
-    /// it would collide at, and `Fea^t` (eq. 4, the expected success of an Smp draw) is computed
-    /// over the same cells, so it predicts the goals actually drawn. On by default: the paper
-    /// draws from the whole heatmap (`false`), which sends the base into known furniture whenever
-    /// the draw lands on a cell the noise might still rescue (docs/planner.md, "Smp over free
-    /// cells").
-    pub free_goals_only: bool,
-    /// GROP+'s levers (read by [`MethodKind::GropPlus`] only; the other methods ignore them).
-    pub plus: GropPlusConfig,
-}
-
-impl Default for PlannerConfig {
-    fn default() -> Self {
-        Self {
-            success_bonus_r: 40.0,
-            aggregation: FeasibilityAggregation::Sum,
-            goal_draws: 1,
-            search: SearchMode::Auto,
-            no_path_cost_s: 60.0,
-            speed_mps: 0.4,
-            baseline_goals: BaselineGoals::Paper,
-            lazy_costs: false,
-            free_goals_only: true,
-            plus: GropPlusConfig::DEFAULT,
-        }
-    }
-}
-
-impl PlannerConfig {
-    /// The defaults with the robot file's `R` and speed.
-    pub fn for_robot(robot: &world::RobotConfig) -> Self {
-        Self {
-            success_bonus_r: robot.success_bonus_r,
-            speed_mps: robot.speed_mps,
-            ..Self::default()
-        }
-    }
-}
-
-/// How a navigation goal was chosen.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum GoalSource {
-    /// `Smp` from the heatmap (best of `goal_draws`).
-    Smp,
-    /// Uniform among obstacle-free cells.
-    UniformFree,
-    /// Uniform among cells with a nonzero heatmap value (authors' code variant).
-    UniformNonzero,
-    /// Uniform in the fixed region (authors' Satisficing).
-    FixedRegion,
-    /// Uniform among all candidate cells: nothing better existed (all-zero heatmap, no free cell).
-    UniformAny,
-    /// GROP+'s retry after a failed unload ([`crate::grop_plus::retry_goal`]).
-    Retry,
-}
-
-/// A navigation goal: where the base is commanded to stand for one (target, side).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct NavGoal {
-    /// Location index (`2 * object + side`).
-    pub location: usize,
-    /// Index into the location's candidate cells.
-    pub cell: usize,
-    /// Crop row and column of the cell.
-    pub row_col: (usize, usize),
-    /// World position (m).
-    pub xy: (f64, f64),
-    /// Base yaw facing the table (rad).
-    pub yaw_rad: f64,
-    /// The heatmap value `h[x]` at the goal.
-    pub heat_value: f32,
-    /// How it was chosen.
-    pub source: GoalSource,
-}
 
 /// One row of a decision's explanation per (object, side).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -492,28 +310,6 @@ fn uniform_free(loc: &UnloadLocation, rng: &mut ChaCha8Rng) -> (usize, GoalSourc
             GoalSource::UniformFree,
         )
     }
-}
-
-/// The heatmap `method` reads for a location (goal draws and `Fea^t`): as predicted, or, for GROP
-/// and GROP+ with [`PlannerConfig::free_goals_only`], zero on the cells where the base collides;
-/// GROP+ then also applies its goal margin ([`crate::grop_plus::plus_heat`]).
-pub fn location_heat(
-    method: MethodKind,
-    config: &PlannerConfig,
-    loc: &UnloadLocation,
-) -> [f32; CANDIDATE_CELLS] {
-    let mut heat = loc.heat;
-    if config.free_goals_only && method.uses_smp_goals() {
-        for (h, c) in heat.iter_mut().zip(&loc.cells) {
-            if !c.free {
-                *h = 0.0;
-            }
-        }
-    }
-    if method == MethodKind::GropPlus {
-        heat = crate::grop_plus::plus_heat(&config.plus, loc, heat);
-    }
-    heat
 }
 
 /// The legs (pairs of nodes) a plan drives.
