@@ -3,37 +3,11 @@
 
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use serde::{Deserialize, Serialize};
 
 use crate::collision::ObstacleBox;
 use crate::kinematics::Joints;
+pub use crate::place::JointPathSettings;
 use crate::place::{ArmScene, BasePose, PlaceConfig};
-
-/// Settings of [`plan_joint_path`].
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
-pub struct JointPathSettings {
-    /// Largest joint change of one tree extension (max norm) [rad].
-    pub step_rad: f64,
-    /// Largest joint change between collision checks along an edge (max norm) [rad]; 0.05 rad
-    /// moves the TCP at most about 5 cm at full reach.
-    pub edge_resolution_rad: f64,
-    /// Samples drawn before giving up.
-    pub max_samples: u32,
-    /// Shortcut attempts on the found path.
-    pub shortcut_attempts: u32,
-}
-
-impl Default for JointPathSettings {
-    fn default() -> Self {
-        Self {
-            step_rad: 0.3,
-            edge_resolution_rad: 0.05,
-            max_samples: 5000,
-            shortcut_attempts: 200,
-        }
-    }
-}
 
 /// Why no joint path was found.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, thiserror::Error)]

@@ -9,7 +9,6 @@ use serde::{Deserialize, Serialize};
 
 use crate::collision::{ArmCollisionModel, ObstacleBox, capsules_collide};
 use crate::kinematics::{Joints, Ur5e};
-use crate::path::JointPathSettings;
 
 /// Where the arm base frame (DH frame 0) sits on the mobile base. The mobile base frame has its
 /// origin at the base centre on the floor, x forward, z up.
@@ -70,6 +69,33 @@ impl BasePose {
             Translation3::new(self.x_m, self.y_m, 0.0),
             UnitQuaternion::from_axis_angle(&Vector3::z_axis(), self.yaw_rad),
         )
+    }
+}
+
+/// Settings of [`crate::path::plan_joint_path`] (part of [`PlaceConfig`]: the joint paths of a
+/// placing).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct JointPathSettings {
+    /// Largest joint change of one tree extension (max norm) [rad].
+    pub step_rad: f64,
+    /// Largest joint change between collision checks along an edge (max norm) [rad]; 0.05 rad
+    /// moves the TCP at most about 5 cm at full reach.
+    pub edge_resolution_rad: f64,
+    /// Samples drawn before giving up.
+    pub max_samples: u32,
+    /// Shortcut attempts on the found path.
+    pub shortcut_attempts: u32,
+}
+
+impl Default for JointPathSettings {
+    fn default() -> Self {
+        Self {
+            step_rad: 0.3,
+            edge_resolution_rad: 0.05,
+            max_samples: 5000,
+            shortcut_attempts: 200,
+        }
     }
 }
 
