@@ -52,7 +52,8 @@ use std::time::Duration;
 
 pub use robot::{EXTERNAL_CONTROL_PROGRAM, RTDE_CONTROL_PROGRAM, RobotInit, Snapshot};
 pub use server::PortKind;
-use server::{Shared, lock};
+use server::Shared;
+use stepping::lock;
 pub use stepping::{StepError, StepReport, Stepping};
 pub use ur5e::rtde::ControllerVersion;
 

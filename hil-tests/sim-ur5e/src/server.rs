@@ -10,7 +10,7 @@
 use std::io::{self, BufRead, BufReader, Read, Write};
 use std::net::{Shutdown, SocketAddr, TcpListener, TcpStream};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
-use std::sync::{Arc, Condvar, Mutex, MutexGuard};
+use std::sync::{Arc, Condvar, Mutex};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
@@ -27,7 +27,7 @@ use crate::fields::{InputTable, OutputField, resolve_output};
 use crate::primary;
 use crate::robot::{RobotModel, Snapshot};
 use crate::stepping::Stepping;
-use crate::stepping::{self, AckSlot, ReaderSync, STEP_WAIT, StepReport};
+use crate::stepping::{self, AckSlot, ReaderSync, STEP_WAIT, StepReport, lock};
 use crate::urscript::{is_rtde_control, parse_program, parse_rtde_control};
 
 /// The robot and its RTDE inputs, behind one lock.
@@ -113,11 +113,6 @@ pub enum PortKind {
     Realtime,
     /// 63352.
     Gripper,
-}
-
-/// Locks a mutex, recovering from a panicked holder (the data is plain state).
-pub(crate) fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
-    m.lock().unwrap_or_else(|e| e.into_inner())
 }
 
 impl Shared {

@@ -148,13 +148,15 @@ pub(crate) fn wait_drained(
 ) -> usize {
     let deadline = Instant::now() + STEP_WAIT;
     loop {
-        let pending = crate::server::lock(readers)
-            .iter()
-            .filter(|(_, r)| !r.drained())
-            .count();
+        let pending = lock(readers).iter().filter(|(_, r)| !r.drained()).count();
         if pending == 0 || Instant::now() >= deadline {
             return pending;
         }
         std::thread::yield_now();
     }
+}
+
+/// Locks a mutex, recovering from a panicked holder (the data is plain state).
+pub(crate) fn lock<T>(m: &std::sync::Mutex<T>) -> std::sync::MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(|e| e.into_inner())
 }
