@@ -84,15 +84,9 @@ pub struct Args {
     pub fault: Option<hil_world::faults::FaultSpec>,
 }
 
-pub fn run(args: Args) -> anyhow::Result<()> {
-    if args.in_process {
-        return run_in_process(args);
-    }
-    crate::cmd_demo_closed_loop::run(args)
-}
-
-/// The pipeline once as one calculation (the fast model `grop eval` uses): no processes.
-fn run_in_process(args: Args) -> anyhow::Result<()> {
+/// The pipeline once as one calculation (the fast model `grop eval` uses): no processes
+/// (`--in-process`; the closed loop is `cmd_demo_closed_loop`).
+pub fn run_in_process(args: Args) -> anyhow::Result<()> {
     let method = MethodKind::parse(&args.method).with_context(|| {
         format!(
             "unknown --method {:?}: use grop+, grop, satisficing, petlon, dvh or fcn-planning",

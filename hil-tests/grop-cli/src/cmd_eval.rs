@@ -169,7 +169,7 @@ pub struct Args {
 }
 
 /// The experiment's configuration from the options and the robot.
-fn config(args: &Args, robot: &world::RobotConfig) -> anyhow::Result<EvalConfig> {
+pub(crate) fn config(args: &Args, robot: &world::RobotConfig) -> anyhow::Result<EvalConfig> {
     let methods = args
         .methods
         .iter()
@@ -218,7 +218,7 @@ fn config(args: &Args, robot: &world::RobotConfig) -> anyhow::Result<EvalConfig>
     Ok(cfg)
 }
 
-fn load_robot(args: &Args) -> anyhow::Result<world::RobotConfig> {
+pub(crate) fn load_robot(args: &Args) -> anyhow::Result<world::RobotConfig> {
     Ok(match &args.robot {
         Some(p) => world::RobotConfig::load(p)
             .with_context(|| format!("loading robot file {}", p.display()))?,
@@ -230,13 +230,6 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let started = Instant::now();
     let robot = load_robot(&args)?;
     let cfg = config(&args, &robot)?;
-    if args.suite == Suite::FullSetting {
-        anyhow::ensure!(
-            args.shard.is_none(),
-            "--shard runs the paper suite only (not --suite full-setting)"
-        );
-        return crate::cmd_eval_settings::run(&args, &robot, cfg.methods.clone(), cfg.planner);
-    }
     cfg.check()?;
 
     let workload = Workload::build(&cfg);

@@ -17,6 +17,17 @@ use psi_eval::heuristics::{BinaryAnnulusEvaluator, BlurredAnnulusEvaluator, Orac
 
 use crate::cmd_eval::{Args, Evaluator};
 
+/// `grop eval --suite full-setting`.
+pub fn run_command(args: Args) -> anyhow::Result<()> {
+    let robot = crate::cmd_eval::load_robot(&args)?;
+    let cfg = crate::cmd_eval::config(&args, &robot)?;
+    anyhow::ensure!(
+        args.shard.is_none(),
+        "--shard runs the paper suite only (not --suite full-setting)"
+    );
+    run(&args, &robot, cfg.methods.clone(), cfg.planner)
+}
+
 pub fn run(
     args: &Args,
     robot: &world::RobotConfig,

@@ -80,10 +80,14 @@ fn main() -> std::process::ExitCode {
     let cli = Cli::parse();
     env_logger::Builder::from_env(env_logger::Env::default().default_filter_or(&cli.log)).init();
     let result = match cli.command {
-        Command::Demo(a) => cmd_demo::run(a),
+        Command::Demo(a) if a.in_process => cmd_demo::run_in_process(a),
+        Command::Demo(a) => cmd_demo_closed_loop::run(a),
         Command::Datagen(a) => cmd_datagen::run(a),
         Command::Render(a) => cmd_render::run(a),
         Command::ModelEval(a) => cmd_model_eval::run(a),
+        Command::Eval(a) if a.suite == cmd_eval::Suite::FullSetting => {
+            cmd_eval_settings::run_command(a)
+        }
         Command::Eval(a) => cmd_eval::run(a),
         Command::Bench(a) => cmd_bench::run(a),
         Command::BenchSettings(a) => cmd_bench_settings::run(a),
