@@ -172,6 +172,12 @@ pub fn open(spec: &str, participant: &str, rank: u32) -> Result<Box<dyn Clock>, 
     }
 }
 
+/// Nanoseconds in `d`, saturating at `u64::MAX` (584 years): how every message stamps a
+/// [`Duration`] of the runtime clock. The one conversion the workspace uses.
+pub fn duration_ns(d: Duration) -> u64 {
+    u64::try_from(d.as_nanos()).unwrap_or(u64::MAX)
+}
+
 /// The host's `CLOCK_MONOTONIC`: the same time base in every process of the machine.
 #[derive(Debug, Clone, Copy, Default)]
 pub struct WallClock;

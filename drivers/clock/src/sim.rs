@@ -27,6 +27,7 @@ use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, AtomicU32, AtomicU64, Ordering};
 use std::time::{Duration, Instant};
 
+use crate::duration_ns as ns;
 use crate::{Clock, ClockError, check_name, futex, monotonic_now, pid_alive};
 
 /// Most processes that can share one simulated clock.
@@ -149,10 +150,6 @@ fn decode_name(words: &[AtomicU64; 4]) -> String {
     }
     let end = bytes.iter().position(|&b| b == 0).unwrap_or(bytes.len());
     String::from_utf8_lossy(&bytes[..end]).into_owned()
-}
-
-fn ns(d: Duration) -> u64 {
-    u64::try_from(d.as_nanos()).unwrap_or(u64::MAX)
 }
 
 /// A participant that left the clock without saying so: its process died.

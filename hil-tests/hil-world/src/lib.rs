@@ -38,6 +38,7 @@ use world::{RobotConfig, Scene};
 
 use faults::{CanFault, FaultKind, FaultRecord, FaultSpec, FaultyBus, Trigger};
 use fixes::{FixModel, FixSimulator};
+use grop_clock::duration_ns as ns;
 use objects::{JudgeConfig, ObjectEvent, ObjectTracker, Verdict};
 use report::{
     CollisionRecord, DeathRecord, EventRecord, LegRecord, LoopTiming, MissionEnd, Part, PlanRecord,
@@ -209,10 +210,6 @@ fn ipc(e: impl std::fmt::Display) -> WorldError {
 
 fn secs(d: Duration) -> f64 {
     d.as_secs_f64()
-}
-
-fn ns(d: Duration) -> u64 {
-    u64::try_from(d.as_nanos()).unwrap_or(u64::MAX)
 }
 
 impl World {

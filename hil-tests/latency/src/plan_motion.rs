@@ -23,6 +23,7 @@ use sim_rmp::{SimConfig, SimRmp, SimRmpNode};
 use ur5e_kin::Joints;
 
 use crate::stats::Summary;
+use grop_clock::duration_ns as ns;
 
 /// An arm that is parked and answers every skill as done at once.
 struct ParkedArm;
@@ -47,10 +48,6 @@ impl ArmDevice for ParkedArm {
         })
     }
     fn stop(&mut self, _now: Duration) {}
-}
-
-fn ns(d: Duration) -> u64 {
-    u64::try_from(d.as_nanos()).unwrap_or(u64::MAX)
 }
 
 /// One sample: a fresh executive, its mission started, the plan published, the first motion

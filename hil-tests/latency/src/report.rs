@@ -8,6 +8,7 @@ use crate::camera::{ModeResult, Transport, WaitMode};
 use crate::jitter::LoopResult;
 use crate::stats::{format_us, thousands};
 use crate::suite::SuiteResults;
+use grop_clock::duration_ns;
 
 /// Heading of the section another measurement fills (camera frame to plan, plan to first CAN
 /// motion, from the closed loop).
@@ -158,10 +159,6 @@ fn ratio(x: Option<f64>) -> String {
 
 fn met(yes: bool) -> &'static str {
     if yes { "yes" } else { "no" }
-}
-
-fn duration_ns(d: std::time::Duration) -> u64 {
-    u64::try_from(d.as_nanos()).unwrap_or(u64::MAX)
 }
 
 fn rt_label(l: &LoopResult) -> String {

@@ -80,6 +80,7 @@ use world::view::CROP_CELLS;
 use world::{Heatmap, RobotConfig, Scene, Side};
 
 use crate::deployment::{Deployment, PlannerSettings, RetryPolicy};
+use grop_clock::duration_ns;
 
 /// Rank of the planner among the participants of a simulated clock.
 pub const PLANNER_CLOCK_RANK: u32 = 10;
@@ -1259,8 +1260,4 @@ fn table_side(side: Side) -> TableSide {
         Side::Near => TableSide::Near,
         Side::Far => TableSide::Far,
     }
-}
-
-fn duration_ns(t: Duration) -> u64 {
-    t.as_nanos().min(u128::from(u64::MAX)) as u64
 }

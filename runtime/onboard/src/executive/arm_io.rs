@@ -14,9 +14,7 @@ use ur5e_kin::Joints;
 use super::unload::{ArmFault, ArmPort, SkillStatus};
 use super::{ArmDevice, ArmSnapshot};
 
-fn ns(d: Duration) -> u64 {
-    u64::try_from(d.as_nanos()).unwrap_or(u64::MAX)
-}
+use grop_clock::duration_ns as ns;
 
 /// The wire code of a fault.
 pub fn outcome_of(result: Result<(), ArmFault>) -> ArmOutcome {

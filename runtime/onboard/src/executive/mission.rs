@@ -31,6 +31,7 @@ use super::unload::{
 use super::worker::{Answer, Job, MAX_PATH_POINTS};
 use super::{AbortReason, ExecutiveConfig, MAX_TRAY_SLOTS, MissionState};
 use crate::localisation::{FixOutcome, Localiser, PlanarPose};
+pub(super) use grop_clock::duration_ns as ns;
 
 /// The arm must reach its carry pose within this.
 const PARKING_TIMEOUT: Duration = Duration::from_secs(20);
@@ -145,10 +146,6 @@ pub(super) fn text(
     // Too long: cut (the message would be cut to the capacity anyway).
     let _ = s.write_fmt(args);
     s
-}
-
-pub(super) fn ns(d: Duration) -> u64 {
-    u64::try_from(d.as_nanos()).unwrap_or(u64::MAX)
 }
 
 /// The executive's decisions.
