@@ -29,9 +29,9 @@ use std::time::{Duration, Instant};
 use iceoryx2::prelude::*;
 use iceoryx2::service::port_factory::{event, publish_subscribe};
 
-use crate::os::{monotonic_ns, wait_readable};
 use crate::peer_table::PeerTable;
 use crate::{CanBus, CanFrame, CanId, MAX_DATA_LEN, RecvError, SendError};
+use grop_clock::{duration_ns, monotonic_now, wait_readable};
 
 type Ipc = ipc_threadsafe::Service;
 
@@ -78,7 +78,7 @@ impl WireFrame {
         let mut data = [0u8; MAX_DATA_LEN];
         data[..frame.data().len()].copy_from_slice(frame.data());
         Self {
-            sent_at_ns: monotonic_ns(),
+            sent_at_ns: duration_ns(monotonic_now()),
             sender_key,
             seq,
             raw_id,
@@ -558,7 +558,7 @@ impl CanBus for VirtualCanBus {
             // poll(2) on the listener's socket instead of `Listener::timed_wait`: the latter
             // uses a socket receive timeout, which the kernel rounds up to whole scheduler ticks
             // (4-8 ms measured for a 200 us timeout); ppoll sleeps on a high-resolution timer.
-            wait_readable(self.listener_fd, remaining).map_err(|error| RecvError::Ipc {
+            wait_readable(&[self.listener_fd], remaining).map_err(|error| RecvError::Ipc {
                 bus: self.bus_name.clone(),
                 detail: format!("waiting for a wake-up: {error}"),
             })?;

@@ -28,10 +28,12 @@
 mod futex;
 pub mod rt;
 mod sim;
+mod wait;
 
 use std::time::Duration;
 
 pub use sim::{Departure, HostConfig, MAX_PARTICIPANTS, SimClock, SimClockHost};
+pub use wait::{MAX_WAIT_FDS, wait_readable};
 
 /// A monotonic clock with absolute-deadline sleeps.
 pub trait Clock: Send + Sync {

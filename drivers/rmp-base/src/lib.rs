@@ -4,7 +4,7 @@
 //!
 //! The driver is a state machine driven by [`RmpBase::tick`], called once per command period
 //! (50 Hz by default) with the time of a monotonic clock the caller owns (wall clock on the
-//! robot, a simulated clock in HIL, see [`MonotonicClock`]). It speaks to the base through an
+//! robot, a simulated clock in HIL, see `grop_clock::WallClock`). It speaks to the base through an
 //! [`RmpLink`]; [`CanLink`] puts it on any `can_bus::CanBus` (SocketCAN, the iceoryx2 virtual
 //! bus, the in-memory bus).
 //!
@@ -38,39 +38,3 @@ pub use driver::{
 };
 pub use link::{CanLink, LinkError, RmpLink, from_can, to_can};
 pub use odometry::Odometry;
-
-use std::time::{Duration, Instant};
-
-/// The wall-clock implementation of the driver's time base: time since construction.
-#[derive(Debug, Clone, Copy)]
-pub struct MonotonicClock {
-    origin: Instant,
-}
-
-impl Default for MonotonicClock {
-    fn default() -> Self {
-        Self::new()
-    }
-}
-
-impl MonotonicClock {
-    /// A clock whose zero is now.
-    pub fn new() -> Self {
-        Self {
-            origin: Instant::now(),
-        }
-    }
-
-    /// Time since construction.
-    pub fn now(&self) -> Duration {
-        self.origin.elapsed()
-    }
-
-    /// Sleeps until `deadline` (returns at once if it has passed).
-    pub fn sleep_until(&self, deadline: Duration) {
-        let now = self.now();
-        if deadline > now {
-            std::thread::sleep(deadline - now);
-        }
-    }
-}

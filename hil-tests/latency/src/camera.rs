@@ -619,7 +619,7 @@ impl Reader<'_> {
                         if left.is_zero() {
                             return Err(timeout());
                         }
-                        can_bus::os::wait_readable(self.listener_fd, left)
+                        grop_clock::wait_readable(&[self.listener_fd], left)
                             .map_err(BenchError::io("waiting on the iceoryx2 listener"))?;
                     }
                 }

@@ -29,7 +29,7 @@ pub struct PipelineResult {
 }
 
 fn monotonic_ns() -> u64 {
-    can_bus::os::monotonic_ns()
+    grop_clock::duration_ns(grop_clock::monotonic_now())
 }
 
 /// Runs `samples` frame-to-plan measurements with the model at `model` on an evaluation scene;

@@ -13,8 +13,9 @@ use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
 use can_bus::VirtualCanBus;
+use grop_clock::{Clock, WallClock};
 use motion_control::Twist;
-use rmp_base::{BaseError, BaseMode, CanLink, MonotonicClock, RmpBase, RmpBaseConfig};
+use rmp_base::{BaseError, BaseMode, CanLink, RmpBase, RmpBaseConfig};
 
 static COUNTER: AtomicU32 = AtomicU32::new(0);
 
@@ -119,7 +120,7 @@ fn driver_drives_the_simulated_base_process_over_the_virtual_bus() {
     let mut sim = SimProcess::spawn(&bus_name);
     let bus = VirtualCanBus::join(&bus_name, "driver").expect("driver joins the bus");
     let mut base = RmpBase::new(CanLink::new(bus), RmpBaseConfig::default()).unwrap();
-    let clock = MonotonicClock::new();
+    let clock = WallClock;
     let period = base.config().command_period;
     let mut next = clock.now();
 

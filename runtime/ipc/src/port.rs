@@ -8,7 +8,7 @@ use std::marker::PhantomData;
 use std::ops::Deref;
 use std::time::{Duration, Instant};
 
-use can_bus::os::{ServiceOpenFailure, service_open_failure, wait_readable};
+use can_bus::os::{ServiceOpenFailure, service_open_failure};
 use iceoryx2::port::listener::Listener;
 use iceoryx2::port::notifier::Notifier;
 use iceoryx2::port::publisher::Publisher;
@@ -515,39 +515,10 @@ impl TopicPublisher<CameraFrameMsg> {
 }
 
 /// Sleeps until one of the topics behind `wake_fds` ([`TopicSubscriber::wake_fd`]) has a new
-/// message, or `timeout` has passed (ppoll: no rounding to scheduler ticks).
+/// message, or `timeout` has passed (`grop_clock::wait_readable`: ppoll, no rounding to
+/// scheduler ticks; at most `grop_clock::MAX_WAIT_FDS` topics).
 pub fn wait_any(wake_fds: &[i32], timeout: Duration) -> std::io::Result<()> {
-    let mut fds = [libc::pollfd {
-        fd: -1,
-        events: libc::POLLIN,
-        revents: 0,
-    }; 8];
-    let n = wake_fds.len().min(fds.len());
-    for (slot, fd) in fds.iter_mut().zip(wake_fds) {
-        slot.fd = *fd;
-    }
-    let timeout = libc::timespec {
-        tv_sec: libc::time_t::try_from(timeout.as_secs()).unwrap_or(libc::time_t::MAX),
-        // Below 1e9, so it fits a c_long on every target.
-        tv_nsec: timeout.subsec_nanos() as libc::c_long,
-    };
-    // SAFETY: `n` valid pollfds (at most 8, the array's length), a valid timespec, no signal
-    // mask change.
-    let status = unsafe {
-        libc::ppoll(
-            fds.as_mut_ptr(),
-            n as libc::nfds_t,
-            &timeout,
-            std::ptr::null(),
-        )
-    };
-    if status < 0 {
-        let error = std::io::Error::last_os_error();
-        if error.kind() != std::io::ErrorKind::Interrupted {
-            return Err(error);
-        }
-    }
-    Ok(())
+    grop_clock::wait_readable(wake_fds, timeout)
 }
 
 /// A received message, read in place in shared memory (dereferences to `T`).
@@ -647,7 +618,7 @@ impl<T: Topic> TopicSubscriber<T> {
             }
             // poll(2) on the listener's socket: `Listener::timed_wait` uses a socket receive
             // timeout that the kernel rounds up to scheduler ticks (ms), ppoll does not.
-            wait_readable(self.listener_fd, remaining)
+            grop_clock::wait_readable(&[self.listener_fd], remaining)
                 .map_err(|e| self.error(format!("waiting for a wake-up: {e}")))?;
         }
     }
