@@ -539,21 +539,26 @@ fn heartbeats_every_100_ms_of_clock_time() {
     assert_eq!(node.overruns(), 0);
 }
 
-/// A request before any frame waits for the frame; a frame whose header does not cover the
-/// targets is an error the node survives.
-#[test]
-fn requests_wait_for_a_frame_and_bad_frames_are_survived() {
-    let scene = world::generate::evaluation_scene(10, 20, 2);
-    let ns = unique_namespace("noframe");
-    let mut node = PlannerNode::new(
-        &ns,
+/// A node on `scene` with Psi, the default robot and settings, as most tests want it.
+fn default_node(ns: &str, scene: &Scene) -> PlannerNode {
+    PlannerNode::new(
+        ns,
         scene.clone(),
         RobotConfig::default(),
         Box::new(psi()),
         PlannerSettings::default(),
         0,
     )
-    .unwrap();
+    .unwrap()
+}
+
+/// A request before any frame waits for the frame; a frame whose header does not cover the
+/// targets is an error the node survives.
+#[test]
+fn requests_wait_for_a_frame_and_bad_frames_are_survived() {
+    let scene = world::generate::evaluation_scene(10, 20, 2);
+    let ns = unique_namespace("noframe");
+    let mut node = default_node(&ns, &scene);
     let p = peers(&ns);
     p.requests
         .publish(&request(
@@ -646,15 +651,7 @@ fn requests_wait_for_a_frame_and_bad_frames_are_survived() {
 fn a_frozen_camera_frame_is_not_planned_from() {
     let scene = world::generate::evaluation_scene(10, 20, 2);
     let ns = unique_namespace("frozen");
-    let mut node = PlannerNode::new(
-        &ns,
-        scene.clone(),
-        RobotConfig::default(),
-        Box::new(psi()),
-        PlannerSettings::default(),
-        0,
-    )
-    .unwrap();
+    let mut node = default_node(&ns, &scene);
     let p = peers(&ns);
     // Frame 1, stamped at 0; the camera then freezes.
     publish_frame(&p.camera, &scene, 1);
@@ -692,15 +689,7 @@ fn a_frozen_camera_frame_is_not_planned_from() {
 fn a_camera_frame_stamped_in_the_future_is_refused_and_a_frame_goes_stale_from_its_arrival() {
     let scene = world::generate::evaluation_scene(10, 20, 2);
     let ns = unique_namespace("future");
-    let mut node = PlannerNode::new(
-        &ns,
-        scene.clone(),
-        RobotConfig::default(),
-        Box::new(psi()),
-        PlannerSettings::default(),
-        0,
-    )
-    .unwrap();
+    let mut node = default_node(&ns, &scene);
     let p = peers(&ns);
     let mut now = Duration::from_secs(5);
     // Stamped 1 h ahead: before, its age read 0 s for an hour, so a camera frozen on it
