@@ -1,54 +1,17 @@
 //! Allocation budget of the steady-state path: MemoryBus allocates nothing, the virtual bus only
 //! the one allocation per sent frame that iceoryx2 0.10 makes inside `loan`. Counted with a
 //! global allocator (this test binary only).
-#![allow(
-    unsafe_code,
-    reason = "a counting GlobalAlloc proves the bus allocates nothing per frame"
-)]
 #![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failure panics with its message
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::time::Duration;
 
 use can_bus::{CanBus, CanFrame, CanId, MemoryBus, VirtualCanBus};
 
-struct CountingAllocator;
-
-static COUNTING: AtomicBool = AtomicBool::new(false);
-static ALLOCATIONS: AtomicUsize = AtomicUsize::new(0);
-
-// SAFETY: forwards every call to the system allocator unchanged; only counts.
-unsafe impl GlobalAlloc for CountingAllocator {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        if COUNTING.load(Ordering::Relaxed) {
-            ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
-        }
-        // SAFETY: same contract as the caller's.
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        // SAFETY: same contract as the caller's.
-        unsafe { System.dealloc(ptr, layout) }
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        if COUNTING.load(Ordering::Relaxed) {
-            ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
-        }
-        // SAFETY: same contract as the caller's.
-        unsafe { System.realloc(ptr, layout, new_size) }
-    }
-}
-
 #[global_allocator]
-static GLOBAL: CountingAllocator = CountingAllocator;
+static GLOBAL: test_support::CountingAlloc = test_support::CountingAlloc;
 
-fn allocations_during(mut work: impl FnMut()) -> usize {
-    ALLOCATIONS.store(0, Ordering::Relaxed);
-    COUNTING.store(true, Ordering::Relaxed);
-    work();
-    COUNTING.store(false, Ordering::Relaxed);
-    ALLOCATIONS.load(Ordering::Relaxed)
+fn allocations_during(work: impl FnOnce()) -> u64 {
+    test_support::allocations_on_this_thread(work).1
 }
 
 /// One driver cycle: command out, feedback in, both directions, plus a wait that times out.
@@ -72,7 +35,6 @@ fn cycles<B: CanBus>(driver: &mut B, base: &mut B, count: u32) {
 
 #[test]
 fn steady_state_send_and_receive_do_not_allocate() {
-    // One test function: the counter is global to the process.
     let bus = format!("t{}-noalloc", std::process::id());
     let mut driver = VirtualCanBus::join(&bus, "driver").unwrap();
     let mut base = VirtualCanBus::join(&bus, "base").unwrap();

@@ -1,13 +1,6 @@
 //! The driver's steady-state tick allocates nothing: a counting global allocator around
 //! `RmpBase::tick` while a base answers on the in-memory bus.
-#![allow(
-    unsafe_code,
-    reason = "a counting GlobalAlloc proves the driver allocates nothing per tick"
-)]
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::cell::Cell;
-use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Duration;
 
 use can_bus::{CanBus, MemoryBus};
@@ -16,46 +9,17 @@ use rmp_base::{BaseMode, CanLink, RmpBase, RmpBaseConfig, from_can, to_can};
 use rmp_codec::feedback::{FeedbackItem, FeedbackLayout, FeedbackSet};
 use rmp_codec::v3::{ConfigCommand, FirmwareProfile, HostCommand, ModeRequest, OperationalState};
 
-struct Counting;
-
-static ALLOCATIONS: AtomicU64 = AtomicU64::new(0);
-thread_local! {
-    static MEASURING: Cell<bool> = const { Cell::new(false) };
-}
-
-// SAFETY: forwards to the system allocator unchanged; only counts.
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        if MEASURING.with(|m| m.get()) {
-            ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
-        }
-        // SAFETY: same contract as the caller's.
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        // SAFETY: same contract as the caller's.
-        unsafe { System.dealloc(ptr, layout) }
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        if MEASURING.with(|m| m.get()) {
-            ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
-        }
-        // SAFETY: same contract as the caller's.
-        unsafe { System.realloc(ptr, layout, new_size) }
-    }
-}
-
 #[global_allocator]
-static GLOBAL: Counting = Counting;
+static GLOBAL: test_support::CountingAlloc = test_support::CountingAlloc;
 
 #[test]
 fn steady_state_tick_does_not_allocate() {
     // The counter itself works: one allocation while measuring is seen.
-    MEASURING.with(|m| m.set(true));
-    let probe = std::hint::black_box(Box::new(42u64));
-    MEASURING.with(|m| m.set(false));
+    let (probe, n) =
+        test_support::allocations_on_this_thread(|| std::hint::black_box(Box::new(42u64)));
     drop(probe);
-    assert_eq!(ALLOCATIONS.swap(0, Ordering::Relaxed), 1);
+    assert_eq!(n, 1);
+    let mut allocations = 0;
 
     let bus = MemoryBus::new();
     let mut base_node = bus.join();
@@ -68,13 +32,14 @@ fn steady_state_tick_does_not_allocate() {
     let mut measured_ticks = 0;
     driver.request_mode(BaseMode::Tractor, now);
     for tick in 0..400 {
+        let (result, n) = test_support::allocations_on_this_thread(|| {
+            driver.set_velocity(Twist::new(0.3, 0.2), now);
+            driver.tick(now)
+        });
         if tick >= 100 {
-            MEASURING.with(|m| m.set(true));
             measured_ticks += 1;
+            allocations += n;
         }
-        driver.set_velocity(Twist::new(0.3, 0.2), now);
-        let result = driver.tick(now);
-        MEASURING.with(|m| m.set(false));
         result.unwrap();
         // The base: answers in the driver's layout once written.
         while let Some(frame) = base_node.try_recv().unwrap() {
@@ -114,9 +79,5 @@ fn steady_state_tick_does_not_allocate() {
     assert!(matches!(layout, FeedbackLayout::User(_)));
     assert!(driver.odometry().x_m > 0.0);
     assert_eq!(measured_ticks, 300);
-    assert_eq!(
-        ALLOCATIONS.load(Ordering::Relaxed),
-        0,
-        "allocations in 300 ticks"
-    );
+    assert_eq!(allocations, 0, "allocations in 300 ticks");
 }

@@ -1,12 +1,5 @@
 //! The real-time path allocates nothing after construction: decoding, the health check and the
 //! scan assembler over revolutions of packets, with a counting global allocator around them.
-#![allow(
-    unsafe_code,
-    reason = "a counting GlobalAlloc proves the decoder allocates nothing per packet"
-)]
-
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::sync::atomic::{AtomicUsize, Ordering};
 
 use vlp16::calib::Calibration;
 use vlp16::health::{Health, HealthConfig};
@@ -15,25 +8,8 @@ use vlp16::scan::ScanAssembler;
 use vlp16::sim::Emitter;
 use vlp16::{BlindSector, Mount};
 
-struct Counting;
-
-static ALLOCATIONS: AtomicUsize = AtomicUsize::new(0);
-
-// SAFETY: forwards to the system allocator unchanged, only counting calls.
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
-        // SAFETY: same contract as the caller's.
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        // SAFETY: same contract as the caller's.
-        unsafe { System.dealloc(ptr, layout) }
-    }
-}
-
 #[global_allocator]
-static GLOBAL: Counting = Counting;
+static GLOBAL: test_support::CountingAlloc = test_support::CountingAlloc;
 
 #[test]
 fn decoding_health_and_assembly_do_not_allocate() {
@@ -54,7 +30,8 @@ fn decoding_health_and_assembly_do_not_allocate() {
         .unwrap_or_else(|e| panic!("{e}"));
     let mut health = Health::new(HealthConfig::default());
 
-    let before = ALLOCATIONS.load(Ordering::Relaxed);
+    test_support::count_this_thread(true);
+    let before = test_support::this_thread_allocations();
     let mut revolutions = 0;
     let mut points = 0;
     for (bytes, t_us) in &stream {
@@ -68,7 +45,8 @@ fn decoding_health_and_assembly_do_not_allocate() {
         }
         let _ = health.verdict(t_us * 1000);
     }
-    let allocations = ALLOCATIONS.load(Ordering::Relaxed) - before;
+    let allocations = test_support::this_thread_allocations() - before;
+    test_support::count_this_thread(false);
     assert!(
         revolutions >= 4 && points > 100_000,
         "{revolutions} {points}"

@@ -6,14 +6,8 @@
     clippy::too_many_lines,
     reason = "a test scenario (or the fuzz harness's) reads top to bottom as one story"
 )]
-#![allow(
-    unsafe_code,
-    reason = "a counting GlobalAlloc proves no cycle allocates"
-)]
 #![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failure panics with its message
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::cell::Cell;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Duration;
@@ -34,50 +28,10 @@ use sim_rmp::{SimConfig, SimRmp, SimRmpNode};
 use ur5e_kin::Joints;
 use world::{RobotConfig, Scene, UnloadTarget};
 
-// ---- counting allocator: counts allocations of threads that opted in -----------------------
-
-struct Counting;
-thread_local! {
-    static COUNTING: Cell<bool> = const { Cell::new(false) };
-}
-static ALLOCATIONS: AtomicU64 = AtomicU64::new(0);
-/// Print a backtrace for every counted allocation other than iceoryx2's loans (set from
-/// `GROP_ALLOC_TRACE` before counting starts: debugging aid).
-static TRACE: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
-
-// SAFETY: forwards to the system allocator; only counts.
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        if COUNTING.with(|c| c.get()) {
-            let n = ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
-            if TRACE.load(Ordering::Relaxed) && layout.size() != 104 {
-                COUNTING.with(|c| c.set(false));
-                eprintln!(
-                    "allocation {n} of {} bytes at:\n{}",
-                    layout.size(),
-                    std::backtrace::Backtrace::force_capture()
-                );
-                COUNTING.with(|c| c.set(true));
-            }
-        }
-        // SAFETY: same contract as ours.
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        // SAFETY: same contract as ours.
-        unsafe { System.dealloc(ptr, layout) }
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        if COUNTING.with(|c| c.get()) {
-            ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
-        }
-        // SAFETY: same contract as ours.
-        unsafe { System.realloc(ptr, layout, new_size) }
-    }
-}
+// ---- the counting allocator (test-support): counts allocations of threads that opted in -----
 
 #[global_allocator]
-static GLOBAL: Counting = Counting;
+static GLOBAL: test_support::CountingAlloc = test_support::CountingAlloc;
 
 // ---- the harness ---------------------------------------------------------------------------
 
@@ -379,9 +333,9 @@ impl Harness {
         while self.clock.holds.load(Ordering::Acquire) > 0 {
             std::thread::yield_now();
         }
-        COUNTING.with(|c| c.set(count));
+        test_support::count_this_thread(count);
         self.exec.cycle(now);
-        COUNTING.with(|c| c.set(false));
+        test_support::count_this_thread(false);
         while let Some(ev) = self.events.try_recv().unwrap() {
             if let Ok(k) = ev.kind() {
                 if k == EventKind::GoalReached {
@@ -443,11 +397,8 @@ fn a_whole_mission_runs_and_its_cycles_allocate_nothing_but_iceoryx2_loans() {
     let mut h = Harness::new("mission");
     // Start-up: the driver configures the base, enters tractor mode, the first fix arrives.
     h.start_mission();
-    ALLOCATIONS.store(0, Ordering::Relaxed);
-    TRACE.store(
-        std::env::var_os("GROP_ALLOC_TRACE").is_some(),
-        Ordering::Relaxed,
-    );
+    let before = test_support::this_thread_allocations();
+    test_support::trace_allocations(std::env::var_os("GROP_ALLOC_TRACE").is_some());
     let published_before = h.exec.stats().published;
     let finished = h.run_until(Duration::from_secs(400), true, |h| {
         matches!(
@@ -455,7 +406,7 @@ fn a_whole_mission_runs_and_its_cycles_allocate_nothing_but_iceoryx2_loans() {
             MissionState::Finished | MissionState::Aborted(_)
         )
     });
-    let allocations = ALLOCATIONS.load(Ordering::Relaxed);
+    let allocations = test_support::this_thread_allocations() - before;
     assert!(
         finished,
         "mission did not end: {:?}, events {:?}",

@@ -2,13 +2,7 @@
 //! while a move runs) allocates nothing once the motion program is sent. A counting global
 //! allocator counts allocations made by this test's thread while the counter is on; the
 //! simulator's threads, and `Ur5eSim::step` (the world's side), are not counted.
-#![allow(
-    unsafe_code,
-    reason = "a counting GlobalAlloc proves the lock-step loop allocates nothing"
-)]
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::cell::Cell;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::thread;
 use std::time::Duration;
@@ -16,40 +10,8 @@ use std::time::Duration;
 use sim_ur5e::{SimConfig, Stepping, Ur5eSim};
 use ur5e::{ArmConfig, SkillProgress, Ur5eArm};
 
-struct CountingAlloc;
-
-thread_local! {
-    static COUNTING: Cell<bool> = const { Cell::new(false) };
-    static COUNT: Cell<u64> = const { Cell::new(0) };
-}
-
-// SAFETY: forwards to the system allocator; the bookkeeping touches only const-initialised
-// thread-locals, which never allocate.
-unsafe impl GlobalAlloc for CountingAlloc {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        if COUNTING.with(Cell::get) {
-            COUNT.with(|c| c.set(c.get() + 1));
-        }
-        // SAFETY: same contract as the caller's.
-        unsafe { System.alloc(layout) }
-    }
-
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        // SAFETY: same contract as the caller's.
-        unsafe { System.dealloc(ptr, layout) }
-    }
-
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        if COUNTING.with(Cell::get) {
-            COUNT.with(|c| c.set(c.get() + 1));
-        }
-        // SAFETY: same contract as the caller's.
-        unsafe { System.realloc(ptr, layout, new_size) }
-    }
-}
-
 #[global_allocator]
-static ALLOC: CountingAlloc = CountingAlloc;
+static GLOBAL: test_support::CountingAlloc = test_support::CountingAlloc;
 
 #[test]
 fn lockstep_update_and_poll_do_not_allocate_while_a_move_runs() {
@@ -98,19 +60,19 @@ fn lockstep_update_and_poll_do_not_allocate_while_a_move_runs() {
         arm.update_at(now).unwrap();
         assert_eq!(arm.poll(now).unwrap(), SkillProgress::Running);
     }
-    COUNT.with(|c| c.set(0));
+    let before = test_support::this_thread_allocations();
     let mut progress = Vec::with_capacity(1000);
     for _ in 0..1000 {
         sim.step().unwrap();
         let now = sim.controller_time();
-        COUNTING.with(|c| c.set(true));
+        test_support::count_this_thread(true);
         let updated = arm.update_at(now).map(|s| s.program_running());
         let polled = arm.poll(now);
-        COUNTING.with(|c| c.set(false));
+        test_support::count_this_thread(false);
         progress.push((updated.unwrap(), polled.unwrap()));
     }
     assert_eq!(
-        COUNT.with(Cell::get),
+        test_support::this_thread_allocations() - before,
         0,
         "allocations in 1000 lock-step cycles"
     );

@@ -1,35 +1,12 @@
 //! `plan_place` and IK allocate nothing: a counting global allocator around the calls.
-#![allow(
-    unsafe_code,
-    reason = "a counting GlobalAlloc proves the kinematics allocate nothing"
-)]
 
 use core::f64::consts::FRAC_PI_2;
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::sync::atomic::{AtomicUsize, Ordering};
 
 use nalgebra::{Point3, Vector3};
 use ur5e_kin::{BasePose, ObstacleBox, PlaceConfig, Ur5e, arm_collides, plan_place};
 
-struct Counting;
-
-static ALLOCATIONS: AtomicUsize = AtomicUsize::new(0);
-
-// SAFETY: forwards to the system allocator unchanged, only counting calls.
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
-        // SAFETY: same contract as the caller's.
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        // SAFETY: same contract as the caller's.
-        unsafe { System.dealloc(ptr, layout) }
-    }
-}
-
 #[global_allocator]
-static GLOBAL: Counting = Counting;
+static GLOBAL: test_support::CountingAlloc = test_support::CountingAlloc;
 
 #[test]
 fn placement_and_ik_do_not_allocate() {
@@ -55,14 +32,16 @@ fn placement_and_ik_do_not_allocate() {
     let q = [0.4, -1.2, 1.1, -1.3, 1.0, 0.6];
     let flange = arm.forward(&q);
 
-    let before = ALLOCATIONS.load(Ordering::Relaxed);
+    test_support::count_this_thread(true);
+    let before = test_support::this_thread_allocations();
     let mut outcomes = 0usize;
     for base in &poses {
         outcomes += plan_place(&cfg, *base, goal, &obstacles).is_ok() as usize;
         outcomes += arm_collides(&cfg, *base, &q, &obstacles) as usize;
     }
     outcomes += arm.inverse(&flange).len();
-    let after = ALLOCATIONS.load(Ordering::Relaxed);
+    let after = test_support::this_thread_allocations();
+    test_support::count_this_thread(false);
     assert_eq!(after - before, 0, "allocations in the placement path");
     assert!(outcomes > 0);
 }
