@@ -75,6 +75,17 @@ pub struct Args {
     /// Do not write the mission log.
     #[arg(long)]
     pub no_record: bool,
+    /// Watch the mission live in the Foxglove app (Open connection -> ws://ADDR): the recorder
+    /// serves every channel of the mission log over the Foxglove WebSocket protocol, as a
+    /// viewer only. ADDR defaults to 127.0.0.1:8765; off without the flag.
+    #[arg(
+        long,
+        value_name = "ADDR",
+        num_args = 0..=1,
+        default_missing_value = "127.0.0.1:8765",
+        require_equals = false
+    )]
+    pub live: Option<std::net::SocketAddr>,
     /// Simulated time limit of the mission, s.
     #[arg(long, default_value_t = 600.0)]
     pub max_sim_s: f64,
@@ -86,6 +97,10 @@ pub struct Args {
 
 pub fn run(args: Args) -> anyhow::Result<()> {
     if args.in_process {
+        anyhow::ensure!(
+            args.live.is_none(),
+            "--live needs the closed loop of processes (the recorder serves it), not --in-process"
+        );
         return run_in_process(args);
     }
     crate::cmd_demo_closed_loop::run(args)
