@@ -620,3 +620,194 @@ fn hub_loop(shared: &Shared, incoming: &Receiver<(WebSocket<TcpStream>, SocketAd
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use serde_json::Value;
+    use tungstenite::client::IntoClientRequest;
+
+    type Ws = WebSocket<TcpStream>;
+
+    fn start(publish_time: bool) -> LiveServer {
+        LiveServer::start(LiveConfig {
+            publish_time,
+            ..LiveConfig::new("127.0.0.1:0".parse().expect("address"))
+        })
+        .expect("the live view starts")
+    }
+
+    fn connect(addr: SocketAddr, subprotocol: Option<&str>) -> Result<Ws, String> {
+        let stream = TcpStream::connect(addr).map_err(|e| e.to_string())?;
+        stream
+            .set_read_timeout(Some(Duration::from_secs(10)))
+            .map_err(|e| e.to_string())?;
+        let mut request = format!("ws://{addr}/")
+            .into_client_request()
+            .map_err(|e| e.to_string())?;
+        if let Some(p) = subprotocol {
+            request.headers_mut().insert(
+                "Sec-WebSocket-Protocol",
+                HeaderValue::from_str(p).map_err(|e| e.to_string())?,
+            );
+        }
+        tungstenite::client(request, stream)
+            .map(|(ws, _)| ws)
+            .map_err(|e| e.to_string())
+    }
+
+    fn text(ws: &mut Ws) -> Value {
+        loop {
+            if let Message::Text(t) = ws.read().expect("a message") {
+                return serde_json::from_str(t.as_str()).expect("JSON");
+            }
+        }
+    }
+
+    fn binary(ws: &mut Ws) -> Vec<u8> {
+        loop {
+            if let Message::Binary(b) = ws.read().expect("a message") {
+                return b.to_vec();
+            }
+        }
+    }
+
+    /// Waits until the server has read everything sent before: it answers requests in order,
+    /// and this one with a warning.
+    fn sync(ws: &mut Ws) {
+        ws.send(Message::text(r#"{"op":"sync"}"#)).expect("sends");
+        loop {
+            let v = text(ws);
+            if v["op"] == "status" && v["level"] == 1 {
+                return;
+            }
+        }
+    }
+
+    fn subscribe(ws: &mut Ws, id: u32, channel: Channel) {
+        let msg = serde_json::json!({"op": "subscribe", "subscriptions": [
+            {"id": id, "channelId": protocol::channel_id(channel)}]});
+        ws.send(Message::text(msg.to_string())).expect("subscribe");
+    }
+
+    #[test]
+    fn a_taken_address_is_named_in_the_error() {
+        let taken = TcpListener::bind("127.0.0.1:0").expect("bind");
+        let addr = taken.local_addr().expect("address");
+        let e = LiveServer::start(LiveConfig::new(addr))
+            .err()
+            .expect("the address is taken");
+        assert!(e.to_string().contains(&addr.to_string()), "{e}");
+    }
+
+    #[test]
+    fn a_client_without_the_subprotocol_is_turned_away() {
+        let server = start(false);
+        assert!(connect(server.local_addr(), None).is_err());
+        assert!(connect(server.local_addr(), Some("something.else")).is_err());
+        assert_eq!(server.finish().clients, 0);
+    }
+
+    #[test]
+    fn a_subscriber_gets_the_newest_message_at_once_then_each_new_one_and_the_time() {
+        let server = start(true);
+        let mut feed = server.feed();
+        // Before anyone connects: kept as the newest of its channel.
+        assert!(feed.offer(Channel::TaskPlan, 5, b"{\"plan\":1}"));
+        let mut ws = connect(server.local_addr(), Some(protocol::SUBPROTOCOL)).expect("connects");
+        let info = text(&mut ws);
+        assert_eq!(info["op"], "serverInfo");
+        assert_eq!(info["capabilities"], serde_json::json!(["time"]));
+        assert_eq!(text(&mut ws)["op"], "advertise");
+        subscribe(&mut ws, 42, Channel::TaskPlan);
+        assert_eq!(
+            binary(&mut ws),
+            protocol::message_data(42, 5, b"{\"plan\":1}")
+        );
+        // Not subscribed: not sent.
+        assert!(feed.offer(Channel::Can, 6, b"{\"can\":1}"));
+        assert!(feed.offer(Channel::TaskPlan, 7, b"{\"plan\":2}"));
+        assert_eq!(
+            binary(&mut ws),
+            protocol::message_data(42, 7, b"{\"plan\":2}")
+        );
+        feed.offer_time(1_000_000_000);
+        feed.offer_time(1_010_000_000); // within 50 ms: not published
+        feed.offer_time(1_050_000_000);
+        assert_eq!(binary(&mut ws), protocol::time(1_000_000_000));
+        assert_eq!(binary(&mut ws), protocol::time(1_050_000_000));
+        // Unsubscribed: nothing more of it; the next binary message is the time.
+        ws.send(Message::text(
+            r#"{"op":"unsubscribe","subscriptionIds":[42]}"#,
+        ))
+        .expect("unsubscribe");
+        sync(&mut ws);
+        assert!(feed.offer(Channel::TaskPlan, 8, b"{\"plan\":3}"));
+        feed.offer_time(2_000_000_000);
+        assert_eq!(binary(&mut ws), protocol::time(2_000_000_000));
+        let s = server.finish();
+        assert_eq!(s.clients, 1);
+        assert_eq!(s.refused, 0);
+        assert_eq!(s.invalid, 1);
+    }
+
+    #[test]
+    fn publishing_and_service_calls_are_refused_and_counted() {
+        let server = start(false);
+        let mut ws = connect(server.local_addr(), Some(protocol::SUBPROTOCOL)).expect("connects");
+        assert_eq!(text(&mut ws)["capabilities"], serde_json::json!([]));
+        assert_eq!(text(&mut ws)["op"], "advertise");
+        let requests = [
+            Message::text(
+                r#"{"op":"advertise","channels":[{"id":1,"topic":"/cmd","encoding":"json","schemaName":"x"}]}"#,
+            ),
+            Message::binary(vec![1, 1, 0, 0, 0, b'{', b'}']),
+            Message::binary(vec![2, 1, 0, 0, 0, 1, 0, 0, 0, 0, 0, 0, 0]),
+            Message::text(r#"{"op":"setParameters","parameters":[]}"#),
+        ];
+        for r in requests {
+            ws.send(r).expect("sends");
+            let status = text(&mut ws);
+            assert_eq!(status["op"], "status");
+            assert_eq!(status["level"], 2);
+            assert!(
+                status["message"]
+                    .as_str()
+                    .is_some_and(|m| m.contains("refused")),
+                "{status}"
+            );
+        }
+        ws.send(Message::text("not json")).expect("sends");
+        assert_eq!(text(&mut ws)["level"], 1);
+        let s = server.finish();
+        assert_eq!(s.refused, 4);
+        assert_eq!(s.invalid, 1);
+    }
+
+    #[test]
+    fn a_stalled_client_loses_messages_and_the_feed_never_waits() {
+        let server = start(false);
+        let mut feed = server.feed();
+        let mut ws = connect(server.local_addr(), Some(protocol::SUBPROTOCOL)).expect("connects");
+        assert_eq!(text(&mut ws)["op"], "serverInfo");
+        assert_eq!(text(&mut ws)["op"], "advertise");
+        subscribe(&mut ws, 1, Channel::CameraFrame);
+        sync(&mut ws);
+        // 256 MiB to a client that never reads: far more than any socket buffers.
+        let frame = vec![b'x'; 1 << 20];
+        let mut offered = 0;
+        for i in 0..256u64 {
+            offered += u64::from(feed.offer(Channel::CameraFrame, i, &frame));
+        }
+        let s = server.finish();
+        assert!(s.client_dropped > 0, "{s:?}");
+        // serverInfo, advertise and the warning, then the frames.
+        assert_eq!(
+            s.client_dropped + s.sent + s.queue_dropped,
+            3 + 256,
+            "{s:?}"
+        );
+        assert_eq!(offered + s.queue_dropped, 256);
+        drop(ws);
+    }
+}
