@@ -2,6 +2,7 @@
 //! on the simulated clock logs the same messages at the same simulated times, also when one of
 //! the two serves the live view (Foxglove WebSocket) to a viewer, a stalled client and a client
 //! that tries to publish.
+#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failure panics with its message
 
 use std::collections::BTreeMap;
 use std::net::{SocketAddr, TcpStream};

@@ -380,6 +380,8 @@ fn handshake(stream: TcpStream, config: WebSocketConfig) -> Result<WebSocket<Tcp
         .set_write_timeout(Some(Duration::from_secs(2)))
         .map_err(io)?;
     let _ = stream.set_nodelay(true);
+    // The callback's type is tungstenite's (its error is an HTTP response).
+    #[allow(clippy::result_large_err)]
     let callback = |req: &Request, mut resp: Response| -> Result<Response, ErrorResponse> {
         let offered = req
             .headers()
