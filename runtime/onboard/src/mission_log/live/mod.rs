@@ -37,6 +37,8 @@ use protocol::{ClientRequest, Level};
 
 /// Most clients at once; more are turned away with an error status.
 pub const MAX_CLIENTS: usize = 8;
+/// Requests read from one client per pass of the hub.
+const REQUESTS_PER_PASS: usize = 64;
 /// The simulated time is published at most this often (simulated ns).
 const TIME_PERIOD_NS: u64 = 50_000_000;
 
@@ -473,9 +475,13 @@ impl Client {
         self.send(Message::text(protocol::status(level, text)), counters);
     }
 
-    /// Reads and answers what the client sent.
+    /// Reads and answers what the client sent (at most [`REQUESTS_PER_PASS`] requests, so that
+    /// a client that floods requests does not keep the others waiting).
     fn serve(&mut self, cache: &BTreeMap<Channel, (u64, Arc<[u8]>)>, counters: &Counters) {
-        while self.alive {
+        for _ in 0..REQUESTS_PER_PASS {
+            if !self.alive {
+                break;
+            }
             let request = match self.ws.read() {
                 Ok(Message::Text(t)) => protocol::parse_text(t.as_str()),
                 Ok(Message::Binary(b)) => protocol::parse_binary(&b),
