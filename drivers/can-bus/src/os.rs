@@ -2,6 +2,10 @@
 //! descriptor, the host-wide monotonic clock, and the reading of iceoryx2's service-open errors.
 //! Used by [`VirtualCanBus`](crate::VirtualCanBus) and by the runtime's iceoryx2 services
 //! (grop-ipc).
+#![allow(
+    unsafe_code,
+    reason = "ppoll and clock_gettime through libc: the wait on the bus's sockets and eventfd"
+)]
 
 use std::time::Duration;
 

@@ -16,6 +16,10 @@
 //! - per-sender state is a fixed-size table ([`PEERS_PER_NODE`] x `max_nodes` senders, the least
 //!   recently heard evicted and counted in [`VirtualCanBus::evicted_peer_count`]) with wrapping
 //!   sequence arithmetic, since keys and sequence numbers come from other processes.
+#![allow(
+    unsafe_code,
+    reason = "one libc call on the bus's own sockets (see the SAFETY comment)"
+)]
 
 use std::cmp::Reverse;
 use std::collections::BinaryHeap;
@@ -295,6 +299,10 @@ impl VirtualCanBus {
     }
 
     /// Like [`join`](Self::join) with explicit sizes; all nodes of a bus must use the same.
+    #[allow(
+        clippy::too_many_lines,
+        reason = "the join handshake step by step, each failure named where it happens"
+    )]
     pub fn join_with_config(
         bus_name: &str,
         node_name: &str,

@@ -1,6 +1,10 @@
 //! Allocation budget of the steady-state path: MemoryBus allocates nothing, the virtual bus only
 //! the one allocation per sent frame that iceoryx2 0.10 makes inside `loan`. Counted with a
 //! global allocator (this test binary only).
+#![allow(
+    unsafe_code,
+    reason = "a counting GlobalAlloc proves the bus allocates nothing per frame"
+)]
 #![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failure panics with its message
 
 use std::alloc::{GlobalAlloc, Layout, System};

@@ -1,4 +1,8 @@
 //! Process-shared futex wait and wake on a 32-bit word in shared memory.
+#![allow(
+    unsafe_code,
+    reason = "the futex syscall: the simulated clock's wait and wake"
+)]
 
 use std::sync::atomic::AtomicU32;
 use std::time::Duration;

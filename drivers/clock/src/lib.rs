@@ -20,6 +20,10 @@
 //! }
 //! # Ok::<(), grop_clock::ClockError>(())
 //! ```
+#![allow(
+    unsafe_code,
+    reason = "clock_gettime, clock_nanosleep and kill(pid, 0) through libc"
+)]
 
 mod futex;
 pub mod rt;

@@ -15,6 +15,10 @@
 //! closed the clock) is *lost*: its sleeps return at once, `now()` continues on the wall
 //! clock from the last simulated time, and [`Clock::is_lost`] says so, so its own watchdogs
 //! fire and it can stop what it drives.
+#![allow(
+    unsafe_code,
+    reason = "the simulated clock's state lives in a shared mmap'ed page (atomics only)"
+)]
 
 use std::fs::OpenOptions;
 use std::os::fd::AsRawFd;

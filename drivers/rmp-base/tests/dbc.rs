@@ -2,6 +2,10 @@
 //! (1) the default feedback layout of the codec is exactly what the DBC describes and (2)
 //! payloads decoded through the DBC signal definitions equal what the codec decodes, for
 //! pseudo-random payloads of every frame.
+#![allow(
+    clippy::too_many_lines,
+    reason = "a test scenario (or the fuzz harness's) reads top to bottom as one story"
+)]
 
 use std::collections::HashMap;
 

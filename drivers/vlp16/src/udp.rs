@@ -1,5 +1,9 @@
 //! Data packets from a UDP socket (the sensor on the robot, or the simulated sensor over
 //! loopback in HIL), read without blocking.
+#![allow(
+    unsafe_code,
+    reason = "setsockopt/getsockopt for the receive buffer size"
+)]
 
 use std::io;
 use std::net::{IpAddr, SocketAddr, ToSocketAddrs, UdpSocket};

@@ -1,6 +1,10 @@
 //! IPC messages (`runtime/ipc`): every message type's validating accessors over bytes another
 //! process could have left in shared memory, and the camera frame header with the view cut the
 //! planner node makes from it (`world::camera::cut_view`).
+#![allow(
+    unsafe_code,
+    reason = "the fuzz replay builds wire messages from arbitrary bytes (AnyBitPattern on plain-old-data messages)"
+)]
 
 use std::alloc::{Layout, alloc_zeroed};
 use std::cell::RefCell;

@@ -319,6 +319,10 @@ fn strict() -> bool {
     *STRICT.get_or_init(|| std::env::var_os("MISSION_CORE_STRICT").is_some_and(|v| v == "1"))
 }
 
+#[allow(
+    clippy::too_many_lines,
+    reason = "the fuzz harness's world loop reads top to bottom as one story"
+)]
 fn run(data: &[u8]) -> Summary {
     let mut summary = Summary::default();
     let f = fixture();

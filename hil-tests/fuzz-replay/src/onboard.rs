@@ -1,5 +1,9 @@
 //! Files the onboard processes read (`runtime/onboard`): the deployment file, as text, and the
 //! mission log (MCAP with JSON messages) that `grop replay` reads back.
+#![allow(
+    unsafe_code,
+    reason = "the fuzz replay views plain-old-data messages as bytes"
+)]
 
 use std::path::Path;
 

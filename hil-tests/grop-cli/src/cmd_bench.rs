@@ -200,6 +200,10 @@ fn decisions_back_to_back(
     Ok(())
 }
 
+#[allow(
+    clippy::too_many_lines,
+    reason = "a command's steps in order: arguments, setup, the measurements, the report"
+)]
 pub fn run(args: Args) -> anyhow::Result<()> {
     anyhow::ensure!(args.iterations >= 10, "--iterations must be at least 10");
     let robot = world::RobotConfig::default();

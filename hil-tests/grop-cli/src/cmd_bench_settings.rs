@@ -107,6 +107,10 @@ impl Gaps {
 
 const LIMITS: [u64; 2] = [200_000, 2_000_000];
 
+#[allow(
+    clippy::too_many_lines,
+    reason = "a command's steps in order: arguments, setup, the measurements, the report"
+)]
 pub fn run(args: Args) -> anyhow::Result<()> {
     anyhow::ensure!(args.iterations >= 10, "--iterations must be at least 10");
     anyhow::ensure!(args.scenes >= 1, "--scenes must be at least 1");

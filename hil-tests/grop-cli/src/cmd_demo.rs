@@ -219,6 +219,7 @@ fn run_in_process(args: Args) -> anyhow::Result<()> {
 /// Room, every location's predicted heatmap, the planned route (start -> station -> goals in
 /// plan order, as the trial simulator drives it), each goal ringed with its F and coloured by
 /// its outcome, the targets labelled, a metre scale and the legend.
+#[allow(clippy::too_many_lines, reason = "one picture drawn layer by layer")]
 fn draw(
     args: &Args,
     scene: &world::Scene,

@@ -133,6 +133,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     Ok(())
 }
 
+#[allow(clippy::too_many_lines, reason = "the printed report, line by line")]
 fn print_report(report: &WorldReport, wall: Duration, spec_log: Option<&std::path::Path>) {
     if let Some(plan) = report.plans.first() {
         println!(

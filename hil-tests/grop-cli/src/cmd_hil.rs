@@ -131,6 +131,10 @@ pub(crate) fn model_path(p: &std::path::Path) -> anyhow::Result<PathBuf> {
 }
 
 /// Runs the comparison.
+#[allow(
+    clippy::too_many_lines,
+    reason = "a command's steps in order: arguments, the suite, the missions, the report"
+)]
 pub fn run(args: Args) -> anyhow::Result<()> {
     if let Some(name) = &args.suite {
         let dir = hil_world::suite::suite_dir(name)?;

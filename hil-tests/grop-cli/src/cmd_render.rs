@@ -56,6 +56,10 @@ pub enum AreaArg {
     Whole,
 }
 
+#[allow(
+    clippy::too_many_lines,
+    reason = "a command's steps in order: arguments, the scene, the pictures"
+)]
 pub fn run(args: Args) -> anyhow::Result<()> {
     let (scene, robot) = args.world.load()?;
     if args.trials_per_cell == 0 {

@@ -156,6 +156,10 @@ fn median(v: &[u64]) -> u64 {
 }
 
 /// Runs `grop soak`.
+#[allow(
+    clippy::too_many_lines,
+    reason = "a command's steps in order: arguments, the campaign, the report"
+)]
 pub fn run(args: Args) -> anyhow::Result<()> {
     anyhow::ensure!(args.missions > 0, "--missions must be at least 1");
     anyhow::ensure!(args.scenes > 0, "--scenes must be at least 1");

@@ -40,6 +40,10 @@ const MAX_EVENTS: usize = 6;
 
 /// The lines explaining how the mission ended; empty for a mission that finished with no fault
 /// and no process death (nothing to explain). `run_dir` is where the logs are.
+#[allow(
+    clippy::too_many_lines,
+    reason = "one explanation per way a mission ends, in the order printed"
+)]
 pub fn explain(report: &WorldReport, run_dir: &Path) -> Vec<String> {
     let fault = report.fault.as_ref();
     if report.end == MissionEnd::Finished && fault.is_none() && report.deaths.is_empty() {

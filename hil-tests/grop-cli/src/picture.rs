@@ -524,6 +524,7 @@ pub fn mission_title(
 /// plans' from where the base was, the route driven, the standing spots with their F, where
 /// the base stopped, every target labelled with its outcome, where objects were released,
 /// contacts, a metre scale and the legend. `title` heads the legend.
+#[allow(clippy::too_many_lines, reason = "one picture drawn layer by layer")]
 pub fn mission(
     scene: &Scene,
     robot: &RobotConfig,

@@ -1,5 +1,9 @@
 //! Campaigns in shards (`--shard I/N`, `grop merge`): merged shards give what one run writes,
 //! and a missing, duplicated or foreign shard is refused without touching what is there.
+#![allow(
+    clippy::too_many_lines,
+    reason = "a test scenario (or the fuzz harness's) reads top to bottom as one story"
+)]
 #![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failure panics with its message
 
 use std::collections::BTreeMap;

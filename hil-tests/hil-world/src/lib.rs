@@ -329,6 +329,10 @@ impl World {
 
     /// Runs the mission to its end and returns the report. `stop` is polled every step (a
     /// signal handler's flag).
+    #[allow(
+        clippy::too_many_lines,
+        reason = "the world's step loop; splitting it into an ordered list of systems is #23 item 5, still open"
+    )]
     pub fn run(&mut self, stop: &dyn Fn() -> bool) -> WorldReport {
         let wall_start = Instant::now();
         let cfg = self.config.clone();
@@ -1002,6 +1006,7 @@ impl World {
 
     /// Strikes when `spec`'s trigger comes, and keeps up what lasts (a burst's end, the second
     /// commander's frames).
+    #[allow(clippy::too_many_lines, reason = "one arm per fault kind")]
     fn inject(
         &mut self,
         spec: FaultSpec,

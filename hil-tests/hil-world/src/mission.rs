@@ -2,6 +2,10 @@
 //! binaries (`grop-planner`, `grop-executive`), started with names and ports that belong to
 //! this run only, so that missions run side by side and leftovers of crashed runs do not
 //! collide. Used by `grop demo`, `grop hil` and the closed-loop tests.
+#![allow(
+    unsafe_code,
+    reason = "libc::kill sends SIGTERM to the processes a mission started"
+)]
 
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
@@ -458,6 +462,10 @@ impl Drop for RunningMission {
 
 /// Starts the world, waits for its ready line, then starts the planner and the executive
 /// against it.
+#[allow(
+    clippy::too_many_lines,
+    reason = "starts a mission's processes in order, each failure naming its step"
+)]
 pub fn start(spec: &MissionSpec, bins: &Binaries) -> anyhow::Result<RunningMission> {
     std::fs::create_dir_all(&spec.dir)
         .with_context(|| format!("creating {}", spec.dir.display()))?;

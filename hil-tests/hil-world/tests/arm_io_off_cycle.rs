@@ -6,6 +6,10 @@
 //! The bounds asserted (a cycle's arm calls under 100 ms, base commands no more than 200 ms
 //! apart) are the reaction under test, far from what a loaded machine adds to a 2 ms cycle and
 //! far below the 2 s that blocking took; no speed target is asserted.
+#![allow(
+    clippy::too_many_lines,
+    reason = "a test scenario (or the fuzz harness's) reads top to bottom as one story"
+)]
 #![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failure panics with its message
 
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};

@@ -2,6 +2,14 @@
 //! and a test harness that plays the planner and the localiser on iceoryx2 topics: a whole
 //! mission, with a counting allocator proving that no cycle allocates after start-up, and the
 //! safety reactions to a silent base, a dead planner and missing localisation.
+#![allow(
+    clippy::too_many_lines,
+    reason = "a test scenario (or the fuzz harness's) reads top to bottom as one story"
+)]
+#![allow(
+    unsafe_code,
+    reason = "a counting GlobalAlloc proves no cycle allocates"
+)]
 #![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failure panics with its message
 
 use std::alloc::{GlobalAlloc, Layout, System};

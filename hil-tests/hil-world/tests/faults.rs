@@ -58,13 +58,15 @@ fn with_fault(test: &str, seed: u64, fault: &str) -> (WorldReport, FaultRecord) 
     );
     always(&report, &spec.robot);
     println!(
-        "{fault}: injected at {:.3} s (base {:.2} m/s, arm {:.2} rad/s); first zero command {}, commands zero for good {}, base stopped {}, arm stopped {}; end {:?}; largest command {:.3} m/s {:.3} rad/s; CAN {:?}",
+        "{fault}: injected at {:.3} s (base {:.2} m/s, arm {:.2} rad/s); first zero command {}, commands zero for good {}, base stopped {}, arm stop asked {} (dashboard {}), arm stopped {}; end {:?}; largest command {:.3} m/s {:.3} rad/s; CAN {:?}",
         rec.injected_at_s.unwrap_or(f64::NAN),
         rec.base_speed_then_mps,
         rec.arm_speed_then_radps,
         after(&rec, rec.first_zero_command_at_s),
         after(&rec, rec.commanded_zero_at_s),
         after(&rec, rec.base_stopped_at_s),
+        after(&rec, rec.arm_stop_asked_at_s),
+        rec.dashboard_stops,
         after(&rec, rec.arm_stopped_at_s),
         report.end,
         report.commands.max_speed_mps,

@@ -4,6 +4,10 @@
 //! `grop-planner`, one claiming the real planner's pid) are refused and reported by the
 //! executive: the mission goes on, and a dead planner is still noticed. As another OS user it
 //! cannot join the namespace at all.
+#![allow(
+    unsafe_code,
+    reason = "libc::geteuid: the test runs the forger as another user when root"
+)]
 #![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failure panics with its message
 
 use std::path::{Path, PathBuf};

@@ -3,6 +3,10 @@
 //! the two serves the live view (Foxglove WebSocket) to a viewer, a stalled client and a client
 //! that tries to publish.
 #![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failure panics with its message
+#![allow(
+    clippy::too_many_lines,
+    reason = "a test scenario (or the fuzz harness's) reads top to bottom as one story"
+)]
 
 use std::collections::BTreeMap;
 use std::net::{SocketAddr, TcpStream};

@@ -14,6 +14,10 @@
 //!
 //! The allocation sizes of the first allocations in each case are kept, which names the
 //! culprit when a count is not zero (iceoryx2 0.10's `loan_uninit` allocates 104 bytes).
+#![allow(
+    unsafe_code,
+    reason = "the counting GlobalAlloc of the latency harness"
+)]
 
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;

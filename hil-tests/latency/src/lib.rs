@@ -25,6 +25,7 @@
 //! println!("command to decoded feedback: {}", result.decoded);
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
+#![allow(unsafe_code, reason = "getrusage for the CPU time of a run")]
 
 pub mod alloc_count;
 pub mod camera;

@@ -1,4 +1,8 @@
 //! The machine a report was measured on, from /proc and /sys (unknown fields say so).
+#![allow(
+    unsafe_code,
+    reason = "libc::geteuid: whether the real-time settings can be tried"
+)]
 
 use std::time::{SystemTime, UNIX_EPOCH};
 

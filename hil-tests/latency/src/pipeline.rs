@@ -35,6 +35,10 @@ fn monotonic_ns() -> u64 {
 /// Runs `samples` frame-to-plan measurements with the model at `model` on an evaluation scene;
 /// with `rt`, the planner's thread first applies those real-time settings (SCHED_FIFO applies
 /// to that thread).
+#[allow(
+    clippy::too_many_lines,
+    reason = "one benchmark: setup, the measured loop, the statistics"
+)]
 pub fn frame_to_plan(
     samples: usize,
     model: &Path,

@@ -55,6 +55,10 @@ fn ns(d: Duration) -> u64 {
 
 /// One sample: a fresh executive, its mission started, the plan published, the first motion
 /// frame awaited. Returns plan publish -> first non-zero 0x500 frame.
+#[allow(
+    clippy::too_many_lines,
+    reason = "one measured mission start, step by step"
+)]
 fn one(namespace: &str) -> anyhow::Result<Duration> {
     let clock: Arc<dyn Clock> = Arc::new(grop_clock::WallClock);
     let bus = MemoryBus::new();

@@ -399,6 +399,10 @@ fn write_ns(t: &crate::camera::TransportResult) -> Option<u64> {
 }
 
 /// Why each target is met or missed, with the run's own numbers as evidence.
+#[allow(
+    clippy::too_many_lines,
+    reason = "the printed findings, one paragraph after another"
+)]
 fn findings(md: &mut String, r: &SuiteResults) {
     let _ = writeln!(md, "## Where the targets stand, and why\n");
     let c = &r.camera;

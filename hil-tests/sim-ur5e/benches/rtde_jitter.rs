@@ -7,6 +7,10 @@
 //! Reports, over N received packages: p50 / p99 / max of |inter-arrival - 2 ms| measured on
 //! this side with the monotonic clock, packages skipped by newest-wins, and the same deviation
 //! of the controller's own timestamps (its 500 Hz loop on absolute deadlines).
+#![allow(
+    clippy::too_many_lines,
+    reason = "a benchmark's setup, loop and report in one place"
+)]
 #![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failure panics with its message
 
 use std::process::{Command, Stdio};

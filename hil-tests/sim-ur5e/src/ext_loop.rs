@@ -394,6 +394,10 @@ impl RobotModel {
     }
 
     /// The trajectory thread: one point at a time, each started when the previous one ended.
+    #[allow(
+        clippy::too_many_lines,
+        reason = "one arm per mode of the URCap external-control protocol"
+    )]
     fn external_trajectory(&mut self, session: u64, inputs: &InputTable) {
         enum Next {
             Wait,

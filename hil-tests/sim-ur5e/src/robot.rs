@@ -969,6 +969,10 @@ impl RobotModel {
         }
     }
 
+    #[allow(
+        clippy::too_many_lines,
+        reason = "the controller model's one step: modes, motion kinds, limits, in the controller's order"
+    )]
     fn integrate(&mut self, dt: f64) {
         let scale = self.speed_fraction;
         self.speed_scaling = 1.0;

@@ -430,6 +430,7 @@ impl RobotModel {
     }
 
     /// The script's `process_cmd`; false for `stopScript`.
+    #[allow(clippy::too_many_lines, reason = "one arm per ur_rtde command")]
     fn process(&mut self, c: &mut ControlLoop, command: i32, inputs: &InputTable) -> bool {
         let positive = |v: f64| v.is_finite() && v > 0.0;
         match command {

@@ -24,6 +24,10 @@
 //!
 //! Request/reply services (dashboard, gripper socket) answer from their threads at once: their
 //! clients wait for the reply, so they are never in flight across a step.
+#![allow(
+    unsafe_code,
+    reason = "ioctl(FIONREAD): bytes waiting on a socket, without reading them"
+)]
 
 use std::io;
 use std::net::TcpStream;

@@ -493,6 +493,7 @@ fn positive(v: f64, name: &str) -> Result<f64, String> {
     }
 }
 
+#[allow(clippy::too_many_lines, reason = "one arm per URScript statement")]
 fn parse_statement(line: usize, text: &str) -> Result<Statement, ScriptParseError> {
     let fail = |reason: String| ScriptParseError::Statement {
         line,

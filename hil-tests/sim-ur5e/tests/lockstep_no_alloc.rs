@@ -2,6 +2,10 @@
 //! while a move runs) allocates nothing once the motion program is sent. A counting global
 //! allocator counts allocations made by this test's thread while the counter is on; the
 //! simulator's threads, and `Ur5eSim::step` (the world's side), are not counted.
+#![allow(
+    unsafe_code,
+    reason = "a counting GlobalAlloc proves the lock-step loop allocates nothing"
+)]
 
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;

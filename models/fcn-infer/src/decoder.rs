@@ -15,6 +15,10 @@
 //! then runs in tract with the three stages as the plan's outputs, and [`Decoder::decode`]
 //! computes the wanted cells. `FcnModel` checks the result against the whole network at load
 //! time before using it (`crate::FcnModel::load`).
+#![allow(
+    unsafe_code,
+    reason = "AVX2/FMA intrinsics of the decoder, behind runtime feature detection"
+)]
 
 use std::ops::Range;
 

@@ -17,6 +17,10 @@
 //! 0) and a depth-to-space (PixelShuffle(2), which tract runs as two axis moves) when each is the
 //! only consumer of what precedes it. The model's file is not changed: the
 //! weights are the same, and `tests/direct_conv.rs` checks the rewritten plan against tract's own.
+#![allow(
+    unsafe_code,
+    reason = "AVX2/FMA intrinsics of the direct convolution, behind runtime feature detection"
+)]
 
 use tract_onnx::prelude::*;
 use tract_onnx::tract_core::internal::*;

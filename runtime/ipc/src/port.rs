@@ -1,4 +1,8 @@
 //! Nodes, publishers and subscribers for the [`Topic`] types.
+#![allow(
+    unsafe_code,
+    reason = "ppoll on iceoryx2's listener fds, geteuid, and iceoryx2's uninitialised loans"
+)]
 
 use std::marker::PhantomData;
 use std::ops::Deref;

@@ -1,6 +1,10 @@
 //! A hostile local user (docs/security.md): the files iceoryx2 makes for a namespace (its
 //! folder, the node and service files, the event sockets, the shared memory in `/dev/shm`) are
 //! no wider than the user that runs the robot's processes.
+#![allow(
+    unsafe_code,
+    reason = "libc::geteuid: the file-mode checks need the test's own uid"
+)]
 
 use std::os::unix::fs::MetadataExt;
 use std::path::{Path, PathBuf};

@@ -188,6 +188,11 @@ pub struct Answer {
 /// The oldest camera frame the node plans from (three frame periods of the overhead camera).
 pub const MAX_FRAME_AGE: Duration = Duration::from_secs(3);
 
+/// A camera frame stamped later than the node's clock by more than this is refused (the
+/// stamps are taken on the same monotonic clock; a future stamp would keep a frozen frame
+/// fresh for ever, as the saturating age read it as 0 s old).
+pub const MAX_FRAME_LEAD: Duration = Duration::from_millis(100);
+
 /// The node: its ports, the static knowledge (map, robot, occupancy grid), Psi and the planner.
 pub struct PlannerNode {
     frames: TopicSubscriber<CameraFrameMsg>,
@@ -198,6 +203,10 @@ pub struct PlannerNode {
     /// What the node cannot plan (`NotPlanned`), with the reason.
     events: TopicPublisher<EventMsg>,
     newest_frame: Option<Received<CameraFrameMsg>>,
+    /// When the newest frame was taken (its age counts from here too, whatever its stamp).
+    newest_frame_taken: Duration,
+    /// Frames refused for a stamp in the future.
+    frames_refused: u64,
     /// The frame id last reported too old to plan from.
     stale_frame_warned: Option<u64>,
     pending: Option<ReplanRequestMsg>,
@@ -300,6 +309,8 @@ impl PlannerNode {
             health: ipc.publisher()?,
             events: ipc.publisher()?,
             newest_frame: None,
+            newest_frame_taken: Duration::ZERO,
+            frames_refused: 0,
             pending: None,
             planner: Planner::new(settings.method, config),
             capacity: robot.carry_capacity as usize,
@@ -354,6 +365,11 @@ impl PlannerNode {
         self.overruns
     }
 
+    /// Camera frames refused so far for a stamp in the future ([`MAX_FRAME_LEAD`]).
+    pub fn frames_refused(&self) -> u64 {
+        self.frames_refused
+    }
+
     /// Requests that could not be answered so far, and the last reason.
     pub fn failures(&self) -> (u64, Option<&str>) {
         (self.failures, self.last_error.as_deref())
@@ -366,7 +382,11 @@ impl PlannerNode {
         let Some(frame) = self.newest_frame.as_ref() else {
             return false;
         };
-        let age = now.saturating_sub(Duration::from_nanos(frame.header.stamp_ns));
+        // From its stamp and from when it was taken: a frame that stops coming goes stale
+        // whatever its stamp says.
+        let age = now
+            .saturating_sub(Duration::from_nanos(frame.header.stamp_ns))
+            .max(now.saturating_sub(self.newest_frame_taken));
         if age <= MAX_FRAME_AGE {
             return true;
         }
@@ -432,7 +452,22 @@ impl PlannerNode {
     /// Failures to answer are logged and counted, not returned (the node keeps serving).
     pub fn step(&mut self, now: Duration) -> Result<Option<Answer>, PlannerNodeError> {
         while let Some(frame) = self.frames.try_recv()? {
+            let stamp = Duration::from_nanos(frame.header.stamp_ns);
+            if stamp > now.saturating_add(MAX_FRAME_LEAD) {
+                self.frames_refused += 1;
+                self.failures += 1;
+                let text = format!(
+                    "camera frame {} stamped {:.3} s, {:.3} s after now: refused (a stamp in the future)",
+                    frame.header.frame_id,
+                    stamp.as_secs_f64(),
+                    (stamp - now).as_secs_f64()
+                );
+                log::warn!("{text}");
+                self.last_error = Some(text);
+                continue;
+            }
             self.newest_frame = Some(frame);
+            self.newest_frame_taken = now;
         }
         while let Some(request) = self.requests.try_recv()? {
             if let Some(old) = self.pending.replace(*request) {
@@ -569,6 +604,10 @@ impl PlannerNode {
     }
 
     /// Cut + Psi + planner over the objects of `objects_mask` from the request's pose.
+    #[allow(
+        clippy::too_many_lines,
+        reason = "one request planned in order: frame, problem, method, checks, message"
+    )]
     fn plan_and_publish(
         &mut self,
         request: &ReplanRequestMsg,
@@ -814,6 +853,10 @@ impl PlannerNode {
     /// unload per object. Returns the steps, (F, C, U) of the steps (C = the sum of their legs,
     /// U = R F - C) and `Fea^t` per location in `objects` order.
     #[allow(clippy::type_complexity)]
+    #[allow(
+        clippy::too_many_lines,
+        reason = "one multi-trip request planned in order: frame, problem, trips, checks, message"
+    )]
     fn plan_trips(
         &mut self,
         objects: &[usize],

@@ -1,6 +1,10 @@
 //! What both onboard binaries do at start: read the deployment with the command line's
 //! overrides, and turn SIGTERM / SIGINT into a flag their loops check (so they stop the robot
 //! before exiting instead of dying mid-command).
+#![allow(
+    unsafe_code,
+    reason = "libc::signal installs the SIGTERM/SIGINT flag handler"
+)]
 
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};

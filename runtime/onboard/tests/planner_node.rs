@@ -1,5 +1,9 @@
 //! The planner node in-process: a rendered camera frame and replan requests go in over iceoryx2
 //! (unique namespace per test), the task plan, heatmaps and heartbeats come out.
+#![allow(
+    clippy::too_many_lines,
+    reason = "a test scenario (or the fuzz harness's) reads top to bottom as one story"
+)]
 #![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failure panics with its message
 
 use std::sync::Arc;
@@ -682,6 +686,64 @@ fn a_frozen_camera_frame_is_not_planned_from() {
     publish_frame_at(&p.camera, &scene, 2, now);
     let answer = step_until_answer(&mut node, &mut now);
     assert_eq!(answer.request_id, 1);
+}
+
+#[test]
+fn a_camera_frame_stamped_in_the_future_is_refused_and_a_frame_goes_stale_from_its_arrival() {
+    let scene = world::generate::evaluation_scene(10, 20, 2);
+    let ns = unique_namespace("future");
+    let mut node = PlannerNode::new(
+        &ns,
+        scene.clone(),
+        RobotConfig::default(),
+        Box::new(psi()),
+        PlannerSettings::default(),
+        0,
+    )
+    .unwrap();
+    let p = peers(&ns);
+    let mut now = Duration::from_secs(5);
+    // Stamped 1 h ahead: before, its age read 0 s for an hour, so a camera frozen on it
+    // would be planned from all that time.
+    publish_frame_at(&p.camera, &scene, 1, now + Duration::from_secs(3600));
+    p.requests
+        .publish(&request(
+            1,
+            ReplanReason::MissionStart,
+            start_pose(&scene),
+            0,
+        ))
+        .unwrap();
+    for _ in 0..5 {
+        now += Duration::from_millis(10);
+        assert_eq!(
+            node.step(now).unwrap(),
+            None,
+            "planned from a frame stamped in the future"
+        );
+    }
+    assert_eq!(node.frames_refused(), 1);
+    let (_, last) = node.failures();
+    assert!(last.unwrap().contains("in the future"), "{last:?}");
+    // A frame stamped now is planned from ...
+    publish_frame_at(&p.camera, &scene, 2, now);
+    let answer = step_until_answer(&mut node, &mut now);
+    assert_eq!(answer.request_id, 1);
+    // ... and, once the camera stops, goes stale MAX_FRAME_AGE after it arrived, even if its
+    // stamp (just inside the lead allowed) would keep it fresh a little longer.
+    publish_frame_at(&p.camera, &scene, 3, now + Duration::from_millis(90));
+    now += Duration::from_millis(10);
+    node.step(now).unwrap();
+    now += grop_onboard::planner_node::MAX_FRAME_AGE + Duration::from_millis(50);
+    p.requests
+        .publish(&request(
+            2,
+            ReplanReason::MissionStart,
+            start_pose(&scene),
+            0,
+        ))
+        .unwrap();
+    assert_eq!(node.step(now).unwrap(), None, "planned from a stale frame");
 }
 
 /// Objects of the unloads in `steps`, as a bit set.

@@ -42,6 +42,10 @@
 //! cut_view(&frame, &FrameLayout::rgb8(camera), scene.targets[0].x_m, Side::Far, &mut crop)?;
 //! # Ok::<(), world::camera::CameraError>(())
 //! ```
+#![allow(
+    unsafe_code,
+    reason = "AVX2 gathers of the view cuts, behind runtime feature detection"
+)]
 
 use crate::geometry::OrientedRect;
 use crate::scene::Scene;
@@ -723,6 +727,10 @@ unsafe fn cut_group_avx2<const MAX_PX: usize>(
 }
 
 #[inline(always)]
+#[allow(
+    clippy::too_many_lines,
+    reason = "the view cut's inner loop in one body, shared by the AVX2 and the scalar entry points"
+)]
 fn cut_group_body<const MAX_PX: usize>(
     pixels: &[u8],
     layout: &FrameLayout,

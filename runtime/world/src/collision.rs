@@ -122,6 +122,10 @@ impl Scene {
 
     /// As [`Scene::obstacle_boxes`], into a reused vector (cleared first): no allocation once
     /// the vector has grown.
+    #[allow(
+        clippy::too_many_lines,
+        reason = "one block per kind of obstacle (furniture, walls, the arm's own base)"
+    )]
     pub fn obstacle_boxes_into(
         &self,
         robot: &RobotConfig,

@@ -166,6 +166,10 @@ pub struct RayScene {
 
 impl RayScene {
     /// The ray scene of `scene`.
+    #[allow(
+        clippy::too_many_lines,
+        reason = "one block per kind of furniture and wall"
+    )]
     pub fn from_scene(scene: &Scene) -> Self {
         let mut boxes = Vec::new();
         let mut add = |cx: f64, cy: f64, yaw: f64, lx: f64, ly: f64, z0: f64, z1: f64, kind| {

@@ -538,6 +538,7 @@ impl Scene {
     }
 
     /// Checks every rule of the format (see `docs/world.md`); names the first bad field.
+    #[allow(clippy::too_many_lines, reason = "one check per field, each naming it")]
     pub fn validate(&self) -> Result<(), InvalidField> {
         if self.format_version != SCENE_FORMAT_VERSION {
             return Err(InvalidField::new(

@@ -1,6 +1,10 @@
 //! `grop-world`: the closed-loop HIL world as its own process (see the crate docs). Prints one
 //! `grop-world ready ...` line with the names and ports the onboard processes need, runs the
 //! mission in simulated time, and writes the report as JSON.
+#![allow(
+    unsafe_code,
+    reason = "libc::signal installs the SIGTERM/SIGINT flag handler"
+)]
 
 use std::io::Write;
 use std::path::PathBuf;

@@ -36,6 +36,10 @@ struct Args {
     exit_when_done: bool,
 }
 
+#[allow(
+    clippy::too_many_lines,
+    reason = "the process's wiring in order: deployment, devices, clock, executive, sensor, run, report"
+)]
 fn main() -> anyhow::Result<()> {
     env_logger::Builder::from_env(env_logger::Env::default().default_filter_or("info")).init();
     let args = Args::parse();

@@ -56,6 +56,50 @@ struct Args {
     live_queue_mib: usize,
 }
 
+/// The log's metadata records: the mission (what a replay needs) and the recorder's settings.
+fn metadata(
+    args: &Args,
+    deployment: &grop_onboard::deployment::Deployment,
+) -> std::collections::BTreeMap<String, std::collections::BTreeMap<String, String>> {
+    let mut m = std::collections::BTreeMap::new();
+    m.insert(
+        MISSION_METADATA.to_owned(),
+        grop_onboard::mission_log::mission_metadata(deployment),
+    );
+    m.insert(
+        RECORDER_METADATA.to_owned(),
+        [
+            (
+                "camera_period_s".to_owned(),
+                args.camera_period_s.to_string(),
+            ),
+            ("period_ms".to_owned(), args.period_ms.to_string()),
+        ]
+        .into_iter()
+        .collect(),
+    );
+    m
+}
+
+/// The live view, when `--live` asks for it (its address printed on stdout).
+fn start_live(args: &Args, simulated: bool) -> anyhow::Result<Option<LiveServer>> {
+    let Some(addr) = args.live else {
+        return Ok(None);
+    };
+    let server = LiveServer::start(LiveConfig {
+        queue_bytes: args.live_queue_mib.max(1) << 20,
+        publish_time: simulated,
+        ..LiveConfig::new(addr)
+    })?;
+    // Stdout is line-buffered: a test (or a person) reads the bound address at once.
+    println!("grop-recorder live ws://{}", server.local_addr());
+    log::info!(
+        "grop-recorder: live view on ws://{} (Foxglove: Open connection)",
+        server.local_addr()
+    );
+    Ok(Some(server))
+}
+
 fn main() -> anyhow::Result<()> {
     env_logger::Builder::from_env(env_logger::Env::default().default_filter_or("info")).init();
     let args = Args::parse();
@@ -82,26 +126,9 @@ fn main() -> anyhow::Result<()> {
             SocketCanBus::open(ifname).with_context(|| format!("opening SocketCAN {ifname}"))?,
         ),
     };
-    let mut metadata = std::collections::BTreeMap::new();
-    metadata.insert(
-        MISSION_METADATA.to_owned(),
-        grop_onboard::mission_log::mission_metadata(&deployment),
-    );
-    metadata.insert(
-        RECORDER_METADATA.to_owned(),
-        [
-            (
-                "camera_period_s".to_owned(),
-                args.camera_period_s.to_string(),
-            ),
-            ("period_ms".to_owned(), args.period_ms.to_string()),
-        ]
-        .into_iter()
-        .collect(),
-    );
     let writer = LogWriter::create(
         &args.out,
-        metadata,
+        metadata(&args, &deployment),
         WriterConfig {
             queue_bytes: args.queue_mib.max(1) << 20,
             overflow: if simulated {
@@ -122,24 +149,10 @@ fn main() -> anyhow::Result<()> {
             camera_period_ns: (args.camera_period_s * 1e9) as u64,
         },
     )?;
-    let live = match args.live {
-        Some(addr) => {
-            let server = LiveServer::start(LiveConfig {
-                queue_bytes: args.live_queue_mib.max(1) << 20,
-                publish_time: simulated,
-                ..LiveConfig::new(addr)
-            })?;
-            // Stdout is line-buffered: a test (or a person) reads the bound address at once.
-            println!("grop-recorder live ws://{}", server.local_addr());
-            log::info!(
-                "grop-recorder: live view on ws://{} (Foxglove: Open connection)",
-                server.local_addr()
-            );
-            recorder = recorder.with_live(server.feed());
-            Some(server)
-        }
-        None => None,
-    };
+    let live = start_live(&args, simulated)?;
+    if let Some(server) = &live {
+        recorder = recorder.with_live(server.feed());
+    }
     let clock = grop_clock::open(&deployment.clock, "grop-recorder", RECORDER_CLOCK_RANK)
         .with_context(|| format!("opening clock {}", deployment.clock))?;
     log::info!(

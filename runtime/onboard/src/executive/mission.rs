@@ -442,6 +442,10 @@ impl MissionCore {
         }
     }
 
+    #[allow(
+        clippy::too_many_lines,
+        reason = "one match over the mission's steps, every phase that is ready run in one cycle"
+    )]
     fn base_loop(&mut self, inputs: &CycleInputs<'_>, outputs: &mut CycleOutputs) {
         let now = inputs.now;
         // Localisation: odometry, then fixes.

@@ -57,6 +57,10 @@ impl MissionCore {
     /// The collision monitor's holds and stalls: reported when they start and end; a hold that
     /// lasts (an obstacle that does not go away), or a stall (motion sent, none measured: the
     /// base pushes against something), fails the leg, which is then planned again from here.
+    #[allow(
+        clippy::too_many_lines,
+        reason = "the monitor's hold and the stall check, each start and end reported, in order"
+    )]
     pub(super) fn watch_motion(&mut self, inputs: &CycleInputs<'_>, outputs: &mut CycleOutputs) {
         let now = inputs.now;
         // Held: the core asks for motion and the monitor lets (almost) none through.

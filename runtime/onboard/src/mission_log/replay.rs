@@ -389,6 +389,10 @@ pub fn replay(path: &Path, options: &ReplayOptions) -> Result<ReplayReport, Repl
     result
 }
 
+#[allow(
+    clippy::too_many_lines,
+    reason = "a replay in order: the log, the ports, the loop, the digest"
+)]
 fn replay_in(
     log: &MissionLog,
     path: &Path,

@@ -14,6 +14,10 @@
 //! Cost per map: `O(V^2)` line-of-sight checks and `O(V^3)` for the distances, V the number of
 //! corner cells (about 160-240 in the paper's room with 15-25 chairs: ~10 ms). Memory `12 V^2`
 //! bytes.
+#![allow(
+    unsafe_code,
+    reason = "AVX2 min-relaxation of the all-pairs distances, behind runtime feature detection"
+)]
 
 use super::{NAV_CELL_M, OccupancyGrid};
 
