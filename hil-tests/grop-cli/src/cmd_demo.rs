@@ -75,6 +75,17 @@ pub struct Args {
     /// Do not write the mission log.
     #[arg(long)]
     pub no_record: bool,
+    /// Watch the mission live in the Foxglove app (Open connection -> ws://ADDR): the recorder
+    /// serves every channel of the mission log over the Foxglove WebSocket protocol, as a
+    /// viewer only. ADDR defaults to 127.0.0.1:8765; off without the flag.
+    #[arg(
+        long,
+        value_name = "ADDR",
+        num_args = 0..=1,
+        default_missing_value = "127.0.0.1:8765",
+        require_equals = false
+    )]
+    pub live: Option<std::net::SocketAddr>,
     /// Simulated time limit of the mission, s.
     #[arg(long, default_value_t = 600.0)]
     pub max_sim_s: f64,
@@ -87,6 +98,10 @@ pub struct Args {
 /// The pipeline once as one calculation (the fast model `grop eval` uses): no processes
 /// (`--in-process`; the closed loop is `cmd_demo_closed_loop`).
 pub fn run_in_process(args: Args) -> anyhow::Result<()> {
+    anyhow::ensure!(
+        args.live.is_none(),
+        "--live needs the closed loop of processes (the recorder serves it), not --in-process"
+    );
     let method = MethodKind::parse(&args.method).with_context(|| {
         format!(
             "unknown --method {:?}: use grop+, grop, satisficing, petlon, dvh or fcn-planning",

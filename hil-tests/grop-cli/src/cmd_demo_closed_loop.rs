@@ -58,6 +58,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         max_sim_s: args.max_sim_s,
         progress_s: 0.5,
         log: (!args.no_record).then(|| args.record.clone()),
+        live: args.live,
         fault: args.fault,
         lidar: true,
         unmapped_chairs: Vec::new(),
@@ -71,8 +72,27 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         robot.success_bonus_r,
         args.method
     );
+    if let Some(addr) = args.live {
+        anyhow::ensure!(
+            !args.no_record,
+            "--live is served by the mission recorder: drop --no-record"
+        );
+        // A clear message before any process starts (the recorder says the same if the
+        // address is taken between this check and its bind).
+        if addr.port() != 0 {
+            std::net::TcpListener::bind(addr).map_err(|e| {
+                anyhow::anyhow!(
+                    "--live {addr}: cannot listen there: {e} (choose another with --live ADDR)"
+                )
+            })?;
+        }
+    }
     let started = std::time::Instant::now();
-    let running = mission::start(&spec, &bins)?;
+    let mut running = mission::start(&spec, &bins)?;
+    if spec.live.is_some() {
+        let addr = running.live_addr(Duration::from_secs(30))?;
+        println!("live view: ws://{addr} (Foxglove: Open connection; a viewer only)");
+    }
     let bar = ProgressBar::new_spinner();
     bar.set_style(
         ProgressStyle::with_template("{spinner} {elapsed_precise} {msg}")

@@ -178,6 +178,40 @@ fn demo_names_a_bad_method_and_a_missing_model() {
 }
 
 #[test]
+fn demo_live_names_a_taken_address_and_needs_the_recorder() {
+    let taken = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    let addr = taken.local_addr().unwrap().to_string();
+    let dir = tempfile::tempdir().unwrap();
+    let run = dir.path().join("run");
+    let o = grop(&["demo", "--live", &addr, "--run-dir", run.to_str().unwrap()]);
+    assert!(!o.status.success());
+    let out = text(&o);
+    assert!(
+        out.contains(&format!("--live {addr}: cannot listen")),
+        "{out}"
+    );
+    assert!(!out.contains("panicked"), "{out}");
+
+    let o = grop(&[
+        "demo",
+        "--live",
+        "--no-record",
+        "--run-dir",
+        run.to_str().unwrap(),
+    ]);
+    assert!(!o.status.success());
+    assert!(text(&o).contains("drop --no-record"), "{}", text(&o));
+
+    let o = grop(&["demo", "--live", "--in-process"]);
+    assert!(!o.status.success());
+    assert!(
+        text(&o).contains("--live needs the closed loop"),
+        "{}",
+        text(&o)
+    );
+}
+
+#[test]
 fn eval_writes_tables_and_names_a_bad_success_bonus() {
     let dir = tempfile::tempdir().unwrap();
     let model_path = model();

@@ -146,6 +146,9 @@ pub struct MissionSpec {
     pub progress_s: f64,
     /// Write the mission log (MCAP) here (`grop-recorder` joins the mission); `None`: no log.
     pub log: Option<PathBuf>,
+    /// Serve the live view (Foxglove WebSocket) on this address: the recorder's `--live`; needs
+    /// `log`. Port 0: one the OS chooses ([`RunningMission::live_addr`] says which).
+    pub live: Option<std::net::SocketAddr>,
     /// A fault for the world to inject (docs/reliability.md).
     pub fault: Option<crate::faults::FaultSpec>,
     /// Simulate the range sensor (default); `false`: the executive drives without its
@@ -178,6 +181,7 @@ impl MissionSpec {
             max_sim_s: 600.0,
             progress_s: 0.0,
             log: None,
+            live: None,
             fault: None,
             lidar: true,
             unmapped_chairs: Vec::new(),
@@ -235,6 +239,44 @@ fn kill(child: &mut Child, signal: i32) {
 }
 
 impl RunningMission {
+    /// The address of the live view (the recorder prints it once it listens), waiting up to
+    /// `timeout`; an error when the recorder exits first (a bind error names the address) or
+    /// the mission has no live view.
+    pub fn live_addr(&mut self, timeout: Duration) -> anyhow::Result<std::net::SocketAddr> {
+        let out = self.dir.join("recorder-out.log");
+        let err = self.dir.join("recorder.log");
+        let end = Instant::now() + timeout;
+        loop {
+            let text = std::fs::read_to_string(&out).unwrap_or_default();
+            if let Some(addr) = text
+                .lines()
+                .find_map(|l| l.strip_prefix("grop-recorder live ws://"))
+            {
+                return addr
+                    .trim()
+                    .parse()
+                    .with_context(|| format!("{}: live address {addr:?}", out.display()));
+            }
+            let exited = match self.recorder.as_mut() {
+                Some(r) => !matches!(r.try_wait(), Ok(None)),
+                None => bail!("this mission has no recorder, so no live view"),
+            };
+            if exited {
+                bail!(
+                    "grop-recorder stopped before its live view listened: {}",
+                    log_tail(&err, 5)
+                );
+            }
+            if Instant::now() >= end {
+                bail!(
+                    "grop-recorder printed no live address within {timeout:?} (see {})",
+                    err.display()
+                );
+            }
+            std::thread::sleep(Duration::from_millis(20));
+        }
+    }
+
     /// The next line the world printed, waiting up to `timeout`.
     pub fn next_line(&self, timeout: Duration) -> Option<String> {
         self.lines.recv_timeout(timeout).ok()
@@ -464,6 +506,11 @@ pub fn start(spec: &MissionSpec, bins: &Binaries) -> anyhow::Result<RunningMissi
             .into())
     };
 
+    if spec.live.is_some() && spec.log.is_none() {
+        bail!(
+            "the live view is served by the recorder: it needs the mission log (not --no-record)"
+        );
+    }
     let mut world_cmd = Command::new(&bins.world);
     world_cmd
         .arg("--scene")
@@ -572,6 +619,11 @@ pub fn start(spec: &MissionSpec, bins: &Binaries) -> anyhow::Result<RunningMissi
                 .arg(&deployment_path)
                 .arg("--out")
                 .arg(path)
+                .args(
+                    spec.live
+                        .iter()
+                        .flat_map(|a| ["--live".to_owned(), a.to_string()]),
+                )
                 .stdin(Stdio::null())
                 .stdout(log("recorder-out")?)
                 .stderr(log("recorder")?)

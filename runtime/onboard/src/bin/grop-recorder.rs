@@ -5,7 +5,8 @@
 //! a full write queue drops (and counts) messages; on a simulated clock it joins the clock last
 //! in rank, takes each instant's messages at that instant, and a full queue waits (simulated
 //! time stops, nothing is lost). SIGTERM or SIGINT, or the end of a simulation, finish the
-//! file; if it is killed, everything but the last second stays readable.
+//! file; if it is killed, everything but the last second stays readable. `--live ADDR` also
+//! serves the mission live to the Foxglove app (docs/logs.md, "Live view").
 
 use std::path::PathBuf;
 use std::sync::atomic::Ordering;
@@ -15,6 +16,7 @@ use anyhow::Context;
 use can_bus::{CanBus, SocketCanBus, VirtualCanBus};
 use clap::Parser;
 use grop_onboard::deployment::CanSpec;
+use grop_onboard::mission_log::live::{LiveConfig, LiveServer};
 use grop_onboard::mission_log::{
     LogWriter, MISSION_METADATA, Overflow, RECORDER_METADATA, Recorder, RecorderConfig,
     WriterConfig,
@@ -44,6 +46,58 @@ struct Args {
     /// Most MiB of messages waiting for the disk.
     #[arg(long, default_value_t = 64)]
     queue_mib: usize,
+    /// Serve a live view of the mission on this address (Foxglove WebSocket protocol; open
+    /// ws://ADDR in the Foxglove app). Port 0: one the OS chooses (printed as
+    /// `grop-recorder live ws://ADDR`). Off by default.
+    #[arg(long, value_name = "ADDR")]
+    live: Option<std::net::SocketAddr>,
+    /// Most MiB of messages waiting for the live view (a full queue drops, never waits).
+    #[arg(long, default_value_t = 16)]
+    live_queue_mib: usize,
+}
+
+/// The log's metadata records: the mission (what a replay needs) and the recorder's settings.
+fn metadata(
+    args: &Args,
+    deployment: &grop_onboard::deployment::Deployment,
+) -> std::collections::BTreeMap<String, std::collections::BTreeMap<String, String>> {
+    let mut m = std::collections::BTreeMap::new();
+    m.insert(
+        MISSION_METADATA.to_owned(),
+        grop_onboard::mission_log::mission_metadata(deployment),
+    );
+    m.insert(
+        RECORDER_METADATA.to_owned(),
+        [
+            (
+                "camera_period_s".to_owned(),
+                args.camera_period_s.to_string(),
+            ),
+            ("period_ms".to_owned(), args.period_ms.to_string()),
+        ]
+        .into_iter()
+        .collect(),
+    );
+    m
+}
+
+/// The live view, when `--live` asks for it (its address printed on stdout).
+fn start_live(args: &Args, simulated: bool) -> anyhow::Result<Option<LiveServer>> {
+    let Some(addr) = args.live else {
+        return Ok(None);
+    };
+    let server = LiveServer::start(LiveConfig {
+        queue_bytes: args.live_queue_mib.max(1) << 20,
+        publish_time: simulated,
+        ..LiveConfig::new(addr)
+    })?;
+    // Stdout is line-buffered: a test (or a person) reads the bound address at once.
+    println!("grop-recorder live ws://{}", server.local_addr());
+    log::info!(
+        "grop-recorder: live view on ws://{} (Foxglove: Open connection)",
+        server.local_addr()
+    );
+    Ok(Some(server))
 }
 
 fn main() -> anyhow::Result<()> {
@@ -72,26 +126,9 @@ fn main() -> anyhow::Result<()> {
             SocketCanBus::open(ifname).with_context(|| format!("opening SocketCAN {ifname}"))?,
         ),
     };
-    let mut metadata = std::collections::BTreeMap::new();
-    metadata.insert(
-        MISSION_METADATA.to_owned(),
-        grop_onboard::mission_log::mission_metadata(&deployment),
-    );
-    metadata.insert(
-        RECORDER_METADATA.to_owned(),
-        [
-            (
-                "camera_period_s".to_owned(),
-                args.camera_period_s.to_string(),
-            ),
-            ("period_ms".to_owned(), args.period_ms.to_string()),
-        ]
-        .into_iter()
-        .collect(),
-    );
     let writer = LogWriter::create(
         &args.out,
-        metadata,
+        metadata(&args, &deployment),
         WriterConfig {
             queue_bytes: args.queue_mib.max(1) << 20,
             overflow: if simulated {
@@ -112,6 +149,10 @@ fn main() -> anyhow::Result<()> {
             camera_period_ns: (args.camera_period_s * 1e9) as u64,
         },
     )?;
+    let live = start_live(&args, simulated)?;
+    if let Some(server) = &live {
+        recorder = recorder.with_live(server.feed());
+    }
     let clock = grop_clock::open(&deployment.clock, "grop-recorder", RECORDER_CLOCK_RANK)
         .with_context(|| format!("opening clock {}", deployment.clock))?;
     log::info!(
@@ -134,15 +175,17 @@ fn main() -> anyhow::Result<()> {
     let errors = recorder.receive_errors();
     let last = (!clock.is_lost()).then(|| ns(clock.now()));
     let summary = recorder.finish(last)?;
+    let live = live.map(LiveServer::finish);
     let written: u64 = summary.written.values().sum();
     let dropped: u64 = summary.dropped.values().sum();
+    let live_line = live.map(|l| format!(" {l}")).unwrap_or_default();
     log::info!(
-        "grop-recorder: {} written ({taken} taken), {dropped} dropped, {errors} receive errors, {:.1} MB",
+        "grop-recorder: {} written ({taken} taken), {dropped} dropped, {errors} receive errors, {:.1} MB{live_line}",
         written,
         summary.file_bytes as f64 / 1e6
     );
     println!(
-        "grop-recorder done messages={written} dropped={dropped} receive_errors={errors} bytes={} file={}",
+        "grop-recorder done messages={written} dropped={dropped} receive_errors={errors} bytes={} file={}{live_line}",
         summary.file_bytes,
         args.out.display()
     );

@@ -4,9 +4,11 @@
 //! - [`codec`]: each topic as JSON with a JSON Schema (the camera as `foxglove.RawImage`);
 //! - [`writer`]: a bounded queue in front of an MCAP writer thread (zstd chunks);
 //! - [`recorder`]: what the recorder does each cycle: drain every topic and the CAN bus;
-//! - [`reader`]: reading a log back, and the digest that compares two runs.
+//! - [`reader`]: reading a log back, and the digest that compares two runs;
+//! - [`live`]: the live view, a Foxglove WebSocket server fed by the recorder.
 
 pub mod codec;
+pub mod live;
 pub mod reader;
 pub mod recorder;
 pub mod writer;

@@ -14,6 +14,7 @@ use grop_ipc::{
 
 use super::LogError;
 use super::codec::{self, Channel};
+use super::live::LiveFeed;
 use super::writer::{LogWriter, WriterSummary};
 
 /// Frames kept back in case a plan names them.
@@ -68,6 +69,8 @@ pub struct Recorder {
     /// Recently logged frame ids.
     logged_frames: VecDeque<u64>,
     receive_errors: u64,
+    /// The live view's feed, when it runs.
+    live: Option<LiveFeed>,
 }
 
 fn port(e: impl std::fmt::Display) -> LogError {
@@ -104,7 +107,29 @@ impl Recorder {
             held: VecDeque::with_capacity(CAMERA_RING),
             logged_frames: VecDeque::with_capacity(16),
             receive_errors: 0,
+            live: None,
         })
+    }
+
+    /// Also offers every message it logs to a live view (never waiting: see [`LiveFeed`]).
+    pub fn with_live(mut self, live: LiveFeed) -> Self {
+        self.live = Some(live);
+        self
+    }
+
+    /// Queues one message for the log, and offers it to the live view first.
+    fn emit(
+        writer: &LogWriter,
+        live: &mut Option<LiveFeed>,
+        channel: Channel,
+        log_time: u64,
+        publish_time: u64,
+        data: Vec<u8>,
+    ) {
+        if let Some(live) = live {
+            live.offer(channel, log_time, &data);
+        }
+        writer.push(channel, log_time, publish_time, data);
     }
 
     /// Messages dropped by the writer so far.
@@ -161,6 +186,9 @@ impl Recorder {
     /// Returns how many messages it took.
     #[allow(clippy::too_many_lines, reason = "one entry per logged topic")]
     pub fn drain(&mut self, now_ns: u64) -> usize {
+        if let Some(live) = &mut self.live {
+            live.offer_time(now_ns);
+        }
         let e = &mut self.receive_errors;
         // Inputs of the onboard processes first, then what they made of them.
         let batches = [
@@ -250,15 +278,21 @@ impl Recorder {
         for (channel, batch) in batches {
             n += batch.len();
             for (stamp, _, data) in batch {
-                self.writer.push(channel, now_ns, stamp, data);
+                Self::emit(&self.writer, &mut self.live, channel, now_ns, stamp, data);
             }
         }
         if let Some(bus) = self.bus.as_mut() {
             loop {
                 match bus.try_recv() {
                     Ok(Some(f)) => {
-                        self.writer
-                            .push(Channel::Can, now_ns, now_ns, codec::encode_can(&f));
+                        Self::emit(
+                            &self.writer,
+                            &mut self.live,
+                            Channel::Can,
+                            now_ns,
+                            now_ns,
+                            codec::encode_can(&f),
+                        );
                         n += 1;
                     }
                     Ok(None) => break,
@@ -290,12 +324,32 @@ impl Recorder {
             self.log_held_frame(id);
         }
         for (stamp, data) in maps {
-            self.writer.push(Channel::Heatmaps, now_ns, stamp, data);
+            Self::emit(
+                &self.writer,
+                &mut self.live,
+                Channel::Heatmaps,
+                now_ns,
+                stamp,
+                data,
+            );
         }
         for (stamp, plan, timing) in plans {
-            self.writer.push(Channel::TaskPlan, now_ns, stamp, plan);
-            self.writer
-                .push(Channel::DecisionTiming, now_ns, stamp, timing);
+            Self::emit(
+                &self.writer,
+                &mut self.live,
+                Channel::TaskPlan,
+                now_ns,
+                stamp,
+                plan,
+            );
+            Self::emit(
+                &self.writer,
+                &mut self.live,
+                Channel::DecisionTiming,
+                now_ns,
+                stamp,
+                timing,
+            );
         }
         n
     }
@@ -319,7 +373,9 @@ impl Recorder {
             if due {
                 self.last_camera_stamp = Some(stamp);
                 self.mark_logged(frame.header.frame_id);
-                self.writer.push(
+                Self::emit(
+                    &self.writer,
+                    &mut self.live,
                     Channel::CameraFrame,
                     now_ns,
                     stamp,
@@ -369,7 +425,9 @@ impl Recorder {
         if let Some(i) = self.held.iter().position(|h| h.frame_id == frame_id) {
             if let Some(h) = self.held.remove(i) {
                 self.mark_logged(frame_id);
-                self.writer.push(
+                Self::emit(
+                    &self.writer,
+                    &mut self.live,
                     Channel::CameraFrame,
                     h.log_time,
                     h.stamp,
