@@ -412,8 +412,9 @@ impl CollisionMonitor {
         let step = cfg.simulation_step_s.max(1e-3);
         let horizon = horizon.max(step);
         // Points farther than anything the footprint can reach in the horizon are skipped.
-        let reach = libm::sqrtf(cfg.half_length_m.powi(2) + cfg.half_width_m.powi(2))
-            + margin
+        let reach = libm::sqrtf(
+            cfg.half_length_m * cfg.half_length_m + cfg.half_width_m * cfg.half_width_m,
+        ) + margin
             + twist.speed_mps.abs() * horizon;
         let reach2 = reach * reach;
         let (hl, hw) = (cfg.half_length_m + margin, cfg.half_width_m + margin);
