@@ -155,6 +155,7 @@ fn rmp_config(config: &ExecutiveConfig) -> rmp_base::RmpBaseConfig {
     base_config.limits.max_accel_mps2 = config.robot.accel_mps2 as f32;
     base_config.limits.max_decel_mps2 = config.robot.accel_mps2 as f32;
     base_config.limits.max_yaw_accel_radps2 = config.robot.yaw_accel_radps2 as f32;
+    base_config.emergency_decel_mps2 = config.robot.emergency_decel_mps2 as f32;
     base_config
 }
 
