@@ -45,6 +45,10 @@ pub const DRIVER_FEEDBACK_ITEMS: [FeedbackItem; 16] = [
 /// How many stored limits the driver writes ([`RmpBaseConfig::base_settings`]).
 pub const BASE_SETTINGS: usize = 6;
 
+/// The base's stored accelerations are this many times the driver's limiter's
+/// ([`RmpBaseConfig::base_settings`]).
+pub const ACCEL_HEADROOM: f32 = 2.0;
+
 /// The forced-configuration feedback item that echoes a stored float setting (items 76.. in
 /// parameter-id order, 2014 numbering).
 pub fn echo_item(setting: NvmFloat) -> FeedbackItem {
@@ -232,18 +236,31 @@ impl RmpBaseConfig {
     /// stored deceleration, so a safety stop needs it; the comfort deceleration is the
     /// driver's own ramp), yaw rate, yaw acceleration. Commands are normalised by the verified
     /// velocity and yaw-rate values.
+    ///
+    /// The accelerations are written [`ACCEL_HEADROOM`] times the limiter's (at most what the
+    /// base takes): the driver's limiter is the ramp, the base's setting the ceiling behind it.
+    /// Equal values made the base trail every ramp by a period, and the heading lag put the
+    /// closed-loop mission's base into a chair.
     pub fn base_settings(&self) -> [(NvmFloat, f32); BASE_SETTINGS] {
         let l = &self.limits;
+        let ceiling =
+            |setting: NvmFloat, v: f32| (v * ACCEL_HEADROOM).min(setting.range().1).max(v);
         [
             (
                 NvmFloat::MaxVelocityMps,
                 l.max_forward_mps.max(l.max_reverse_mps),
             ),
-            (NvmFloat::MaxAccelerationMps2, l.max_accel_mps2),
+            (
+                NvmFloat::MaxAccelerationMps2,
+                ceiling(NvmFloat::MaxAccelerationMps2, l.max_accel_mps2),
+            ),
             (NvmFloat::MaxDecelerationMps2, self.emergency_decel_mps2),
             (NvmFloat::MaxDtzDecelMps2, self.emergency_decel_mps2),
             (NvmFloat::MaxTurnRateRadps, l.max_yaw_rate_radps),
-            (NvmFloat::MaxTurnAccelerationRadps2, l.max_yaw_accel_radps2),
+            (
+                NvmFloat::MaxTurnAccelerationRadps2,
+                ceiling(NvmFloat::MaxTurnAccelerationRadps2, l.max_yaw_accel_radps2),
+            ),
         ]
     }
 
@@ -289,7 +306,18 @@ impl RmpBaseConfig {
                 comfort: self.limits.max_decel_mps2,
             });
         }
-        for (setting, value) in self.base_settings() {
+        // The robot's own accelerations within what the base takes (the settings below add
+        // headroom, capped at the base's maximum).
+        for (setting, value) in [
+            (NvmFloat::MaxAccelerationMps2, self.limits.max_accel_mps2),
+            (
+                NvmFloat::MaxTurnAccelerationRadps2,
+                self.limits.max_yaw_accel_radps2,
+            ),
+        ]
+        .into_iter()
+        .chain(self.base_settings())
+        {
             let (_, max) = setting.range();
             // Zero is a stored value the base takes, but the driver divides by the speed and
             // yaw-rate limits and a base that may not accelerate cannot drive: all > 0.
