@@ -628,6 +628,8 @@ pub struct RmpBase<L> {
     last_heard: Option<Duration>,
     forced_echo: Option<FeedbackSet>,
     config_rounds: u8,
+    /// Rounds of writing the stored limits so far.
+    limit_writes: u8,
     last_tick: Option<Duration>,
     status: BaseStatus,
     track_width_m: f64,
@@ -665,7 +667,7 @@ impl<L: RmpLink> RmpBase<L> {
         Ok(Self {
             link,
             startup: if config.assume_feedback_configured {
-                Startup::WriteLimit(0)
+                Self::read_or_write_limits(config.profile)
             } else {
                 Startup::WriteBitmap(0)
             },
@@ -683,6 +685,7 @@ impl<L: RmpLink> RmpBase<L> {
             foreign_this_tick: false,
             forced_echo: None,
             config_rounds: 0,
+            limit_writes: 0,
             last_tick: None,
             status: BaseStatus {
                 state: None,
@@ -777,6 +780,21 @@ impl<L: RmpLink> RmpBase<L> {
         self.verified
     }
 
+    /// After the bitmaps: the read-back round first where the base echoes its stored limits
+    /// (they are written only when they differ: a base configured by an earlier start keeps
+    /// them in F-RAM), else write them at once (older firmware: read back from user feedback).
+    fn after_bitmaps(&self) -> Startup {
+        Self::read_or_write_limits(self.config.profile)
+    }
+
+    fn read_or_write_limits(profile: FirmwareProfile) -> Startup {
+        if profile == FirmwareProfile::SegwayInc2014 {
+            Startup::ForceConfig
+        } else {
+            Startup::WriteLimit(0)
+        }
+    }
+
     fn disarm(&mut self, cause: DisarmCause) {
         if self.disarmed.is_none() {
             warn!("RMP driver disarmed: {cause:?}; commanding zero until re-armed");
@@ -854,10 +872,13 @@ impl<L: RmpLink> RmpBase<L> {
                 self.startup = if index + 1 < self.config.profile.feedback_bitmap_count() {
                     Startup::WriteBitmap(index + 1)
                 } else {
-                    Startup::WriteLimit(0)
+                    self.after_bitmaps()
                 };
             }
             Startup::WriteLimit(index) => {
+                if index == 0 {
+                    self.limit_writes = self.limit_writes.saturating_add(1);
+                }
                 let settings = self.config.base_settings();
                 let (setting, value) = settings[usize::from(index)];
                 self.send_config(ConfigCommand::SetFloat(setting, value))?;
@@ -902,8 +923,14 @@ impl<L: RmpLink> RmpBase<L> {
                             self.config_rounds = 0;
                             self.startup = Startup::Settle;
                         } else if let (true, Some(cause)) = (echoed == wanted, limit_mismatch) {
-                            warn!("RMP base did not take a limit: {cause:?}");
-                            if self.config_rounds >= FEEDBACK_CONFIG_ATTEMPTS {
+                            // The first round reads what the base holds; each later one
+                            // follows a write.
+                            if self.limit_writes > 0 {
+                                warn!("RMP base did not take a limit: {cause:?}");
+                            } else {
+                                info!("RMP base holds other limits ({cause:?}): writing them");
+                            }
+                            if self.limit_writes >= FEEDBACK_CONFIG_ATTEMPTS {
                                 // Refuse to drive: run on (keep-alive, status) disarmed.
                                 self.limit_refused = Some(cause);
                                 self.config_rounds = 0;

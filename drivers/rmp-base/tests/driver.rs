@@ -182,7 +182,7 @@ impl Rig {
 #[test]
 fn start_up_writes_every_feedback_bitmap_then_commands_motion() {
     let mut rig = Rig::new(RmpBaseConfig::default());
-    for _ in 0..15 {
+    for _ in 0..20 {
         rig.tick().unwrap();
     }
     let written: Vec<_> = rig.base.configs[..4].to_vec();
@@ -197,24 +197,32 @@ fn start_up_writes_every_feedback_bitmap_then_commands_motion() {
         })
         .collect();
     assert_eq!(written, expected);
-    // Then the robot's limits into the base's stored settings.
+    // Then what the base holds is read through the forced configuration feedback: its factory
+    // limits, so the robot's are written into its stored settings and read back again.
+    assert_eq!(
+        rig.base.configs[4],
+        ConfigCommand::ForceConfigFeedback(true)
+    );
+    assert_eq!(
+        rig.base.configs[5],
+        ConfigCommand::ForceConfigFeedback(false)
+    );
     let limits: Vec<_> = RmpBaseConfig::default()
         .base_settings()
         .iter()
         .map(|(setting, value)| ConfigCommand::SetFloat(*setting, *value))
         .collect();
-    assert_eq!(rig.base.configs[4..10], limits[..]);
+    assert_eq!(rig.base.configs[6..12], limits[..]);
     assert_eq!(
-        rig.base.configs[4],
+        rig.base.configs[6],
         ConfigCommand::SetFloat(NvmFloat::MaxVelocityMps, 0.5)
     );
-    // Then read back through the forced configuration feedback, and switched off again.
     assert_eq!(
-        rig.base.configs[10],
+        rig.base.configs[12],
         ConfigCommand::ForceConfigFeedback(true)
     );
     assert_eq!(
-        rig.base.configs[11],
+        rig.base.configs[13],
         ConfigCommand::ForceConfigFeedback(false)
     );
     let verified = rig.driver.verified_limits().expect("limits verified");
@@ -230,6 +238,27 @@ fn start_up_writes_every_feedback_bitmap_then_commands_motion() {
     );
     assert!(rig.base.motions.iter().all(|m| *m == (0.0, 0.0)));
     assert_eq!(rig.driver.status().state, Some(OperationalState::Standby));
+}
+
+#[test]
+fn a_base_that_holds_the_limits_already_gets_no_write() {
+    let mut rig = Rig::new(RmpBaseConfig::default());
+    for (setting, value) in RmpBaseConfig::default().base_settings() {
+        rig.base.nvm[nvm_index(setting)] = value;
+    }
+    for _ in 0..20 {
+        rig.tick().unwrap();
+    }
+    assert!(
+        !rig.base
+            .configs
+            .iter()
+            .any(|c| matches!(c, ConfigCommand::SetFloat(..))),
+        "{:?}",
+        rig.base.configs
+    );
+    let verified = rig.driver.verified_limits().expect("limits verified");
+    assert_eq!((verified.velocity_mps, verified.yaw_rate_radps), (0.5, 1.0));
 }
 
 #[test]
@@ -468,6 +497,14 @@ fn a_safety_stop_ramps_at_the_emergency_deceleration_until_rearmed() {
         }
     }
     assert_eq!(speeds[10], 0.0, "{speeds:?}");
+    // The frames on the bus say the same: normalised by the verified 0.5 m/s.
+    let sent: Vec<f32> = rig.base.motions[rig.base.motions.len() - 15..]
+        .iter()
+        .map(|m| m.0 * 0.5)
+        .collect();
+    for (frame, commanded) in sent.iter().zip(&speeds[1..]) {
+        assert!((frame - commanded).abs() < 1e-6, "{sent:?} {speeds:?}");
+    }
     // Yaw at the yaw-acceleration limit (2 rad/s^2: 0.04 rad/s per tick).
     assert!((yaws[0] - yaws[1] - 0.04).abs() < 1e-5, "{yaws:?}");
     assert_eq!(rig.base.motions.last(), Some(&(0.0, 0.0)));

@@ -61,7 +61,7 @@ use unload::{ArmFault, ArmPort};
 pub use base::BaseDevice;
 pub use cycle::{ArmCommand, BaseReading, CycleInputs, CycleOutputs, MonitorAction, MonitorMode};
 pub use mission::MissionCore;
-pub use shell::{Executive, ExecutivePorts, RmpExecutive};
+pub use shell::{Executive, ExecutivePorts, RmpExecutive, rmp_config_for};
 
 /// What the executive needs of the arm besides the unload skills.
 pub trait ArmDevice: ArmPort {
