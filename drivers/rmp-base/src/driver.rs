@@ -147,6 +147,11 @@ pub struct RmpBaseConfig {
     /// the ramp and slews to zero at this rate when our commands stop. Default: the factory
     /// deceleration limit, 3.923.
     pub emergency_decel_mps2: f32,
+    /// Replays of logs recorded before the driver kept the robot's limits in the base: the
+    /// speed and yaw-rate limits the base echoes at start-up are taken as verified (commands
+    /// are normalised by them) and nothing is written. Never on a robot: a base with other
+    /// stored limits would then be driven. Default: false.
+    pub adopt_stored_limits: bool,
 }
 
 impl Default for RmpBaseConfig {
@@ -168,6 +173,7 @@ impl Default for RmpBaseConfig {
             fallback_yaw_rate_limit_radps: NvmFloat::MaxTurnRateRadps.default_value(),
             fallback_track_width_m: NvmFloat::TrackWidthM.default_value() as f64,
             emergency_decel_mps2: NvmFloat::MaxDecelerationMps2.default_value(),
+            adopt_stored_limits: false,
         }
     }
 }
@@ -480,6 +486,15 @@ pub enum BaseError {
     /// The link refused a frame.
     #[error("RMP link: {0}")]
     Link(#[from] LinkError),
+}
+
+/// The speed and yaw-rate limits a forced-configuration echo holds (both finite and > 0).
+fn echoed_limits(echo: &FeedbackSet) -> Option<VerifiedLimits> {
+    let positive = |v: Option<f32>| v.filter(|x| x.is_finite() && *x > 0.0);
+    Some(VerifiedLimits {
+        velocity_mps: positive(echo.get_f32(echo_item(NvmFloat::MaxVelocityMps)))?,
+        yaw_rate_radps: positive(echo.get_f32(echo_item(NvmFloat::MaxTurnRateRadps)))?,
+    })
 }
 
 fn read_back(read: &Option<f32>) -> String {
@@ -920,6 +935,16 @@ impl<L: RmpLink> RmpBase<L> {
                         if echoed == wanted && limit_mismatch.is_none() {
                             info!("RMP feedback bitmaps verified: {wanted:08x?}");
                             info!("RMP stored limits verified: {:?}", self.verified);
+                            self.config_rounds = 0;
+                            self.startup = Startup::Settle;
+                        } else if let (true, Some(_), true) = (
+                            echoed == wanted,
+                            limit_mismatch,
+                            self.config.adopt_stored_limits,
+                        ) {
+                            // A replay of a driver that did not write them: as it did.
+                            self.verified = echoed_limits(&echo);
+                            info!("RMP stored limits adopted (replay): {:?}", self.verified);
                             self.config_rounds = 0;
                             self.startup = Startup::Settle;
                         } else if let (true, Some(cause)) = (echoed == wanted, limit_mismatch) {

@@ -262,6 +262,34 @@ fn a_base_that_holds_the_limits_already_gets_no_write() {
 }
 
 #[test]
+fn a_replay_of_an_older_driver_adopts_the_stored_limits_and_writes_none() {
+    let mut rig = Rig::new(RmpBaseConfig {
+        adopt_stored_limits: true,
+        ..RmpBaseConfig::default()
+    });
+    for _ in 0..20 {
+        rig.tick().unwrap();
+    }
+    assert!(
+        !rig.base
+            .configs
+            .iter()
+            .any(|c| matches!(c, ConfigCommand::SetFloat(..))),
+        "{:?}",
+        rig.base.configs
+    );
+    // The factory limits, as the base holds them.
+    let verified = rig.driver.verified_limits().expect("limits adopted");
+    assert_eq!(
+        (verified.velocity_mps, verified.yaw_rate_radps),
+        (
+            NvmFloat::MaxVelocityMps.default_value(),
+            NvmFloat::MaxTurnRateRadps.default_value()
+        )
+    );
+}
+
+#[test]
 fn velocity_is_limited_and_normalised_by_the_reported_limit() {
     let mut rig = Rig::new(RmpBaseConfig::default());
     rig.enter_tractor();

@@ -145,7 +145,10 @@ pub type RmpExecutive<B, A> = Executive<RmpBase<CanLink<B>>, A>;
 /// The RMP driver's configuration for the robot file's limits (the follower plans within them;
 /// the driver's limiter enforces them).
 fn rmp_config(config: &ExecutiveConfig) -> rmp_base::RmpBaseConfig {
-    rmp_config_for(&config.robot, config.cycle * config.base_every)
+    rmp_base::RmpBaseConfig {
+        adopt_stored_limits: config.adopt_base_limits,
+        ..rmp_config_for(&config.robot, config.cycle * config.base_every)
+    }
 }
 
 /// The RMP driver's configuration for `robot`'s limits at `command_period`: what the executive
