@@ -599,9 +599,11 @@ pub struct Tick {
     pub armed: bool,
 }
 
-/// Start-up: write the feedback bitmaps one per tick, then the stored limits
-/// ([`RmpBaseConfig::base_settings`]) one per tick, read both back through the forced
-/// configuration feedback (as the Segway library does), then drop one tick of replies.
+/// Start-up: write the feedback bitmaps one per tick, read them and the stored limits
+/// ([`RmpBaseConfig::base_settings`]) back through the forced configuration feedback (as the
+/// Segway library does); where the limits differ, write them one per tick and read back again;
+/// then drop one tick of replies. (Older firmware: the limits are written at once and checked
+/// in the user feedback.)
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Startup {
     WriteBitmap(u8),
