@@ -42,6 +42,31 @@ pub const DRIVER_FEEDBACK_ITEMS: [FeedbackItem; 16] = [
     FeedbackItem::FramTrackWidth,
 ];
 
+/// How many stored limits the driver writes ([`RmpBaseConfig::base_settings`]).
+pub const BASE_SETTINGS: usize = 6;
+
+/// The base's stored accelerations are this many times the driver's limiter's
+/// ([`RmpBaseConfig::base_settings`]).
+pub const ACCEL_HEADROOM: f32 = 2.0;
+
+/// The forced-configuration feedback item that echoes a stored float setting (items 76.. in
+/// parameter-id order, 2014 numbering).
+pub fn echo_item(setting: NvmFloat) -> FeedbackItem {
+    let index = NvmFloat::ALL
+        .iter()
+        .position(|p| *p == setting)
+        .unwrap_or(0);
+    FeedbackItem::from_index(FeedbackItem::FORCED_CONFIG_FIRST as usize + index)
+        .unwrap_or(FeedbackItem::FORCED_CONFIG_FIRST)
+}
+
+/// True when `read` is `written` up to float rounding (the value travels as an f32 bit
+/// pattern both ways, so a base that stored it reports it exactly; a few ulps are allowed for a
+/// firmware that converts).
+pub fn same_setting(written: f32, read: f32) -> bool {
+    (written - read).abs() <= 4.0 * f32::EPSILON * written.abs().max(read.abs()).max(1.0)
+}
+
 /// Modes the driver can ask for.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum BaseMode {
@@ -116,6 +141,17 @@ pub struct RmpBaseConfig {
     pub fallback_yaw_rate_limit_radps: f32,
     /// Track width for heading from wheel positions until the base reports its own, m.
     pub fallback_track_width_m: f64,
+    /// Deceleration of a safety stop ([`RmpBase::safety_stop`]), m/s^2: at least
+    /// `limits.max_decel_mps2`, at most the base's highest settable deceleration (7.848). Also
+    /// written into the base's stored deceleration limits, so that the base itself may follow
+    /// the ramp and slews to zero at this rate when our commands stop. Default: the factory
+    /// deceleration limit, 3.923.
+    pub emergency_decel_mps2: f32,
+    /// Replays of logs recorded before the driver kept the robot's limits in the base: the
+    /// speed and yaw-rate limits the base echoes at start-up are taken as verified (commands
+    /// are normalised by them) and nothing is written. Never on a robot: a base with other
+    /// stored limits would then be driven. Default: false.
+    pub adopt_stored_limits: bool,
 }
 
 impl Default for RmpBaseConfig {
@@ -136,6 +172,8 @@ impl Default for RmpBaseConfig {
             overspeed_tolerance_radps: 0.3,
             fallback_yaw_rate_limit_radps: NvmFloat::MaxTurnRateRadps.default_value(),
             fallback_track_width_m: NvmFloat::TrackWidthM.default_value() as f64,
+            emergency_decel_mps2: NvmFloat::MaxDecelerationMps2.default_value(),
+            adopt_stored_limits: false,
         }
     }
 }
@@ -157,6 +195,29 @@ pub enum ConfigError {
     /// names the field.
     #[error("rmp-base config: {0} must be finite and > 0")]
     Fallback(&'static str),
+    /// A limit the driver writes into the base's stored settings lies outside what the base
+    /// accepts.
+    #[error("rmp-base config: the base's {setting:?} would be {value}, it accepts ({min}, {max}]")]
+    BaseSetting {
+        /// The stored setting.
+        setting: NvmFloat,
+        /// The value the configuration gives it.
+        value: f32,
+        /// Lowest value (exclusive).
+        min: f32,
+        /// Highest value.
+        max: f32,
+    },
+    /// `emergency_decel_mps2` is below the comfort deceleration `limits.max_decel_mps2`.
+    #[error(
+        "rmp-base config: emergency_decel_mps2 {emergency} is below limits.max_decel_mps2 {comfort}"
+    )]
+    EmergencyDecel {
+        /// The emergency deceleration.
+        emergency: f32,
+        /// The comfort deceleration.
+        comfort: f32,
+    },
     /// The feedback selection lacks an item the driver needs.
     #[error("rmp-base config: feedback bitmaps must include {0:?}")]
     MissingFeedback(FeedbackItem),
@@ -175,6 +236,40 @@ pub enum ConfigError {
 }
 
 impl RmpBaseConfig {
+    /// The base's stored limits as the driver writes them at start-up, in parameter order:
+    /// velocity (the larger of the forward and reverse limits), acceleration, deceleration and
+    /// decel-to-zero rate (both `emergency_decel_mps2`: the base ramps no faster than its
+    /// stored deceleration, so a safety stop needs it; the comfort deceleration is the
+    /// driver's own ramp), yaw rate, yaw acceleration. Commands are normalised by the verified
+    /// velocity and yaw-rate values.
+    ///
+    /// The accelerations are written [`ACCEL_HEADROOM`] times the limiter's (at most what the
+    /// base takes): the driver's limiter is the ramp, the base's setting the ceiling behind it.
+    /// Equal values made the base trail every ramp by a period, and the heading lag put the
+    /// closed-loop mission's base into a chair.
+    pub fn base_settings(&self) -> [(NvmFloat, f32); BASE_SETTINGS] {
+        let l = &self.limits;
+        let ceiling =
+            |setting: NvmFloat, v: f32| (v * ACCEL_HEADROOM).min(setting.range().1).max(v);
+        [
+            (
+                NvmFloat::MaxVelocityMps,
+                l.max_forward_mps.max(l.max_reverse_mps),
+            ),
+            (
+                NvmFloat::MaxAccelerationMps2,
+                ceiling(NvmFloat::MaxAccelerationMps2, l.max_accel_mps2),
+            ),
+            (NvmFloat::MaxDecelerationMps2, self.emergency_decel_mps2),
+            (NvmFloat::MaxDtzDecelMps2, self.emergency_decel_mps2),
+            (NvmFloat::MaxTurnRateRadps, l.max_yaw_rate_radps),
+            (
+                NvmFloat::MaxTurnAccelerationRadps2,
+                ceiling(NvmFloat::MaxTurnAccelerationRadps2, l.max_yaw_accel_radps2),
+            ),
+        ]
+    }
+
     /// Checks every field.
     pub fn validate(&self) -> Result<(), ConfigError> {
         self.limits.validate()?;
@@ -207,6 +302,39 @@ impl RmpBaseConfig {
         }
         if !positive(self.overspeed_tolerance_radps as f64) {
             return Err(ConfigError::Fallback("overspeed_tolerance_radps"));
+        }
+        if !positive(self.emergency_decel_mps2 as f64) {
+            return Err(ConfigError::Fallback("emergency_decel_mps2"));
+        }
+        if self.emergency_decel_mps2 < self.limits.max_decel_mps2 {
+            return Err(ConfigError::EmergencyDecel {
+                emergency: self.emergency_decel_mps2,
+                comfort: self.limits.max_decel_mps2,
+            });
+        }
+        // The robot's own accelerations within what the base takes (the settings below add
+        // headroom, capped at the base's maximum).
+        for (setting, value) in [
+            (NvmFloat::MaxAccelerationMps2, self.limits.max_accel_mps2),
+            (
+                NvmFloat::MaxTurnAccelerationRadps2,
+                self.limits.max_yaw_accel_radps2,
+            ),
+        ]
+        .into_iter()
+        .chain(self.base_settings())
+        {
+            let (_, max) = setting.range();
+            // Zero is a stored value the base takes, but the driver divides by the speed and
+            // yaw-rate limits and a base that may not accelerate cannot drive: all > 0.
+            if !(value > 0.0 && value <= max) {
+                return Err(ConfigError::BaseSetting {
+                    setting,
+                    value,
+                    min: 0.0,
+                    max,
+                });
+            }
         }
         for item in [
             FeedbackItem::OperationalState,
@@ -325,9 +453,55 @@ pub enum BaseError {
         /// Id of the last one.
         last_id: u16,
     },
+    /// At start-up the base did not keep a limit the driver wrote into its stored settings
+    /// (after the write-and-verify rounds): the driver stays disarmed, commanding zero, and
+    /// reports this every tick. Nothing clears it but a new driver on a base that keeps the
+    /// value.
+    #[error(
+        "RMP base did not take its {setting:?} setting: wrote {written}, read back {}; refusing to drive",
+        read_back(.read)
+    )]
+    LimitNotTaken {
+        /// The stored setting.
+        setting: NvmFloat,
+        /// The value written (from the robot file's limits).
+        written: f32,
+        /// The value the base reports (`None`: it reports none).
+        read: Option<f32>,
+    },
+    /// After the limits were verified the base reported a different speed or yaw-rate limit:
+    /// its normalised commands would now mean other speeds. The driver commands zero and stays
+    /// disarmed until [`RmpBase::rearm`] (and disarms again while the report differs).
+    #[error(
+        "RMP base reports its {setting:?} as {reported}, verified at start-up as {verified}; stopped until re-armed"
+    )]
+    LimitChanged {
+        /// The stored setting.
+        setting: NvmFloat,
+        /// The value verified at start-up.
+        verified: f32,
+        /// The value reported now.
+        reported: f32,
+    },
     /// The link refused a frame.
     #[error("RMP link: {0}")]
     Link(#[from] LinkError),
+}
+
+/// The speed and yaw-rate limits a forced-configuration echo holds (both finite and > 0).
+fn echoed_limits(echo: &FeedbackSet) -> Option<VerifiedLimits> {
+    let positive = |v: Option<f32>| v.filter(|x| x.is_finite() && *x > 0.0);
+    Some(VerifiedLimits {
+        velocity_mps: positive(echo.get_f32(echo_item(NvmFloat::MaxVelocityMps)))?,
+        yaw_rate_radps: positive(echo.get_f32(echo_item(NvmFloat::MaxTurnRateRadps)))?,
+    })
+}
+
+fn read_back(read: &Option<f32>) -> String {
+    match read {
+        Some(v) => v.to_string(),
+        None => "nothing (not in the feedback)".to_owned(),
+    }
 }
 
 /// Why the driver disarmed itself. Disarmed, it commands zero velocity whatever the input,
@@ -356,6 +530,24 @@ pub enum DisarmCause {
     /// Another host sends motion or configuration commands on the bus
     /// ([`BaseError::SecondCommander`]).
     SecondCommander,
+    /// The base did not keep a limit written at start-up ([`BaseError::LimitNotTaken`]).
+    LimitNotTaken {
+        /// The stored setting.
+        setting: NvmFloat,
+        /// The value written.
+        written: f32,
+        /// The value read back, if any.
+        read: Option<f32>,
+    },
+    /// The base reported a limit other than the one verified ([`BaseError::LimitChanged`]).
+    LimitChanged {
+        /// The stored setting.
+        setting: NvmFloat,
+        /// The verified value.
+        verified: f32,
+        /// The value reported.
+        reported: f32,
+    },
 }
 
 fn describe(faults: &FaultStatus) -> String {
@@ -376,12 +568,11 @@ pub struct BaseStatus {
     pub faults: FaultStatus,
     /// Minimum propulsion battery state of charge, %, if reported.
     pub battery_soc_pct: Option<f32>,
-    /// Velocity limit the base normalises with, m/s (reported or fallback). The driver divides
-    /// its commands by the larger of this and the configured maximum speed, so a small (or
-    /// wrong) report can make commands smaller, never larger.
+    /// Velocity limit the base last reported, m/s (the fallback until it reports one). The
+    /// driver divides its commands by the limit verified at start-up
+    /// ([`RmpBase::verified_limits`]) and disarms when a report differs from it.
     pub velocity_limit_mps: f32,
-    /// Yaw-rate limit the base normalises with, rad/s (reported or fallback); the driver
-    /// divides by the larger of this and the configured maximum yaw rate.
+    /// Yaw-rate limit the base last reported, rad/s (the fallback until it reports one).
     pub yaw_rate_limit_radps: f32,
     /// Clock time of the last complete feedback set.
     pub last_feedback: Option<Duration>,
@@ -408,11 +599,15 @@ pub struct Tick {
     pub armed: bool,
 }
 
-/// Start-up: write the feedback bitmaps one per tick, read them back through the forced
-/// configuration feedback (as the Segway library does), then drop one tick of replies.
+/// Start-up: write the feedback bitmaps one per tick, read them and the stored limits
+/// ([`RmpBaseConfig::base_settings`]) back through the forced configuration feedback (as the
+/// Segway library does); where the limits differ, write them one per tick and read back again;
+/// then drop one tick of replies. (Older firmware: the limits are written at once and checked
+/// in the user feedback.)
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Startup {
     WriteBitmap(u8),
+    WriteLimit(u8),
     ForceConfig,
     Verify,
     Settle,
@@ -421,6 +616,16 @@ enum Startup {
 
 /// Write-and-verify rounds before start-up reports [`BaseError::FeedbackConfigRejected`].
 const FEEDBACK_CONFIG_ATTEMPTS: u8 = 3;
+
+/// The speed and yaw-rate limits the base reported back after the driver wrote them: what a
+/// normalised command of 1.0 means.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct VerifiedLimits {
+    /// Stored velocity limit, m/s.
+    pub velocity_mps: f32,
+    /// Stored yaw-rate limit, rad/s.
+    pub yaw_rate_radps: f32,
+}
 
 /// The driver. Owns the link; the caller owns the clock and calls [`tick`](Self::tick) once per
 /// command period with the current monotonic time. Nothing allocates after construction.
@@ -440,6 +645,8 @@ pub struct RmpBase<L> {
     last_heard: Option<Duration>,
     forced_echo: Option<FeedbackSet>,
     config_rounds: u8,
+    /// Rounds of writing the stored limits so far.
+    limit_writes: u8,
     last_tick: Option<Duration>,
     status: BaseStatus,
     track_width_m: f64,
@@ -448,7 +655,17 @@ pub struct RmpBase<L> {
     /// What the base may be doing on the commands sent so far: |commanded|, falling no faster
     /// than the limiter's deceleration (speed, yaw rate).
     envelope: (f32, f32),
-    low_limit_warned: bool,
+    /// The base's speed and yaw-rate limits as read back after the write (`None` until then:
+    /// the driver does not drive).
+    verified: Option<VerifiedLimits>,
+    /// Speed and yaw-rate limits in the last feedback set (`None`: not in it).
+    reported_limits: (Option<f32>, Option<f32>),
+    /// The limit the base did not take at start-up (latched for the driver's life).
+    limit_refused: Option<DisarmCause>,
+    /// A safety stop is latched ([`RmpBase::safety_stop`]).
+    safety_stop: bool,
+    /// The limiter of a safety stop: the comfort limits with the emergency deceleration.
+    emergency: TwistLimiter,
     /// Command frames (0x500/0x501) received from another host, and the last one's id.
     foreign_commands: (u64, u16),
     /// Foreign commands seen since the last tick.
@@ -467,7 +684,7 @@ impl<L: RmpLink> RmpBase<L> {
         Ok(Self {
             link,
             startup: if config.assume_feedback_configured {
-                Startup::Running
+                Self::read_or_write_limits(config.profile)
             } else {
                 Startup::WriteBitmap(0)
             },
@@ -485,6 +702,7 @@ impl<L: RmpLink> RmpBase<L> {
             foreign_this_tick: false,
             forced_echo: None,
             config_rounds: 0,
+            limit_writes: 0,
             last_tick: None,
             status: BaseStatus {
                 state: None,
@@ -501,7 +719,14 @@ impl<L: RmpLink> RmpBase<L> {
             odometry: DeadReckoning::default(),
             disarmed: None,
             envelope: (0.0, 0.0),
-            low_limit_warned: false,
+            verified: None,
+            reported_limits: (None, None),
+            limit_refused: None,
+            safety_stop: false,
+            emergency: TwistLimiter::new(TwistLimits {
+                max_decel_mps2: config.emergency_decel_mps2,
+                ..config.limits
+            }),
             config,
         })
     }
@@ -533,6 +758,9 @@ impl<L: RmpLink> RmpBase<L> {
     /// the cause is gone and the base is at rest (e.g. when a mission starts); if the cause
     /// persists, the next tick disarms again. Velocity ramps up from zero afterwards.
     pub fn rearm(&mut self) -> Option<DisarmCause> {
+        if std::mem::take(&mut self.safety_stop) {
+            info!("RMP driver: safety stop released");
+        }
         let cause = self.disarmed.take();
         if let Some(c) = cause {
             info!("RMP driver re-armed (was disarmed: {c:?})");
@@ -540,6 +768,48 @@ impl<L: RmpLink> RmpBase<L> {
         self.envelope = (0.0, 0.0);
         self.limiter.reset_to(Twist::ZERO);
         cause
+    }
+
+    /// Latches a safety stop: from the next tick the driver ramps its command to zero at
+    /// [`RmpBaseConfig::emergency_decel_mps2`] (yaw at the yaw-acceleration limit) instead of
+    /// the comfort deceleration, whatever [`Self::set_velocity`] asks, and commands zero until
+    /// [`Self::rearm`]. For the executive's latched stops (e-stop, kill switch, UR safety
+    /// stops...). Disarming causes (a lost link, a fault) still command zero at once: the base
+    /// then slews at its stored deceleration, which the driver set to the same rate.
+    pub fn safety_stop(&mut self) {
+        if !self.safety_stop {
+            warn!(
+                "RMP driver: safety stop, ramping to zero at {} m/s^2",
+                self.config.emergency_decel_mps2
+            );
+            self.safety_stop = true;
+        }
+    }
+
+    /// True while a safety stop is latched.
+    pub fn safety_stopping(&self) -> bool {
+        self.safety_stop
+    }
+
+    /// The speed and yaw-rate limits the base reported back after start-up wrote them (`None`
+    /// before, or when it did not keep them: then the driver does not drive).
+    pub fn verified_limits(&self) -> Option<VerifiedLimits> {
+        self.verified
+    }
+
+    /// After the bitmaps: the read-back round first where the base echoes its stored limits
+    /// (they are written only when they differ: a base configured by an earlier start keeps
+    /// them in F-RAM), else write them at once (older firmware: read back from user feedback).
+    fn after_bitmaps(&self) -> Startup {
+        Self::read_or_write_limits(self.config.profile)
+    }
+
+    fn read_or_write_limits(profile: FirmwareProfile) -> Startup {
+        if profile == FirmwareProfile::SegwayInc2014 {
+            Startup::ForceConfig
+        } else {
+            Startup::WriteLimit(0)
+        }
     }
 
     fn disarm(&mut self, cause: DisarmCause) {
@@ -622,10 +892,25 @@ impl<L: RmpLink> RmpBase<L> {
                 sent_config = true;
                 self.startup = if index + 1 < self.config.profile.feedback_bitmap_count() {
                     Startup::WriteBitmap(index + 1)
+                } else {
+                    self.after_bitmaps()
+                };
+            }
+            Startup::WriteLimit(index) => {
+                if index == 0 {
+                    self.limit_writes = self.limit_writes.saturating_add(1);
+                }
+                let settings = self.config.base_settings();
+                let (setting, value) = settings[usize::from(index)];
+                self.send_config(ConfigCommand::SetFloat(setting, value))?;
+                sent_config = true;
+                self.startup = if usize::from(index) + 1 < settings.len() {
+                    Startup::WriteLimit(index + 1)
                 } else if self.config.profile == FirmwareProfile::SegwayInc2014 {
                     Startup::ForceConfig
                 } else {
-                    // The forced-feedback layout of the older firmware is not documented.
+                    // The forced-feedback layout of the older firmware is not documented: its
+                    // speed and yaw-rate limits are checked in the first user feedback set.
                     Startup::Settle
                 };
             }
@@ -652,10 +937,38 @@ impl<L: RmpLink> RmpBase<L> {
                         ]
                         .map(|item| echo.get(item).unwrap_or(u32::MAX));
                         self.send_config(ConfigCommand::ForceConfigFeedback(false))?;
-                        if echoed == wanted {
+                        let limit_mismatch = self.check_echoed_limits(&echo);
+                        if echoed == wanted && limit_mismatch.is_none() {
                             info!("RMP feedback bitmaps verified: {wanted:08x?}");
+                            info!("RMP stored limits verified: {:?}", self.verified);
                             self.config_rounds = 0;
                             self.startup = Startup::Settle;
+                        } else if let (true, Some(_), true) = (
+                            echoed == wanted,
+                            limit_mismatch,
+                            self.config.adopt_stored_limits,
+                        ) {
+                            // A replay of a driver that did not write them: as it did.
+                            self.verified = echoed_limits(&echo);
+                            info!("RMP stored limits adopted (replay): {:?}", self.verified);
+                            self.config_rounds = 0;
+                            self.startup = Startup::Settle;
+                        } else if let (true, Some(cause)) = (echoed == wanted, limit_mismatch) {
+                            // The first round reads what the base holds; each later one
+                            // follows a write.
+                            if self.limit_writes > 0 {
+                                warn!("RMP base did not take a limit: {cause:?}");
+                            } else {
+                                info!("RMP base holds other limits ({cause:?}): writing them");
+                            }
+                            if self.limit_writes >= FEEDBACK_CONFIG_ATTEMPTS {
+                                // Refuse to drive: run on (keep-alive, status) disarmed.
+                                self.limit_refused = Some(cause);
+                                self.config_rounds = 0;
+                                self.startup = Startup::Settle;
+                            } else {
+                                self.startup = Startup::WriteLimit(0);
+                            }
                         } else {
                             warn!("RMP feedback bitmaps {echoed:08x?}, wanted {wanted:08x?}");
                             self.startup = Startup::WriteBitmap(0);
@@ -724,6 +1037,12 @@ impl<L: RmpLink> RmpBase<L> {
         if std::mem::take(&mut self.foreign_this_tick) {
             self.disarm(DisarmCause::SecondCommander);
         }
+        if let Some(cause) = self.limit_refused {
+            self.disarm(cause);
+        }
+        if let Some(cause) = self.limit_changed() {
+            self.disarm(cause);
+        }
         if faulted {
             self.disarm(DisarmCause::Faulted {
                 faults: self.status.faults,
@@ -737,8 +1056,9 @@ impl<L: RmpLink> RmpBase<L> {
             }
         }
         let armed = self.disarmed.is_none();
-        let may_drive = armed && !silent && !faulted && self.is_driving();
-        let wanted = if input_stale || !may_drive {
+        let may_drive =
+            armed && !silent && !faulted && self.is_driving() && self.verified.is_some();
+        let wanted = if input_stale || !may_drive || self.safety_stop {
             Twist::ZERO
         } else {
             self.target
@@ -751,7 +1071,15 @@ impl<L: RmpLink> RmpBase<L> {
             // Not driving: the base is not moving on our commands, so restart ramps from rest.
             self.limiter.reset_to(Twist::ZERO);
         }
-        let commanded = self.limiter.step(wanted, dt.as_secs_f32());
+        let commanded = if self.safety_stop {
+            // The emergency ramp, from wherever the comfort ramp was.
+            self.emergency.reset_to(self.limiter.output());
+            let c = self.emergency.step(Twist::ZERO, dt.as_secs_f32());
+            self.limiter.reset_to(c);
+            c
+        } else {
+            self.limiter.step(wanted, dt.as_secs_f32())
+        };
         let dt_s = dt.as_secs_f32();
         let limits = &self.config.limits;
         self.envelope = (
@@ -767,18 +1095,16 @@ impl<L: RmpLink> RmpBase<L> {
 
         if !sent_config {
             // The motion frame is also the keep-alive and the prompt for feedback. The base
-            // multiplies it by its own limit: dividing by a reported limit below the configured
-            // maximum would ask the base for more than the robot file allows if the report were
-            // wrong, so the divisor is at least the configured maximum.
-            let v_scale = self
-                .status
-                .velocity_limit_mps
-                .max(limits.max_forward_mps)
-                .max(limits.max_reverse_mps);
-            let w_scale = self
-                .status
-                .yaw_rate_limit_radps
-                .max(limits.max_yaw_rate_radps);
+            // multiplies it by its stored limit: the driver wrote the robot's limits there and
+            // divides by what the base reported back (a later report that differs disarms).
+            // Before that the command is zero whatever the divisor.
+            let (v_scale, w_scale) = match self.verified {
+                Some(v) => (v.velocity_mps, v.yaw_rate_radps),
+                None => (
+                    self.config.fallback_velocity_limit_mps,
+                    self.config.fallback_yaw_rate_limit_radps,
+                ),
+            };
             let v = (commanded.speed_mps / v_scale).clamp(-1.0, 1.0);
             let w =
                 (self.config.yaw_sign as f32 * commanded.yaw_rate_radps / w_scale).clamp(-1.0, 1.0);
@@ -813,6 +1139,30 @@ impl<L: RmpLink> RmpBase<L> {
                 last_id: self.foreign_commands.1,
             });
         }
+        if let Some(DisarmCause::LimitNotTaken {
+            setting,
+            written,
+            read,
+        }) = self.disarmed
+        {
+            return Err(BaseError::LimitNotTaken {
+                setting,
+                written,
+                read,
+            });
+        }
+        if let Some(DisarmCause::LimitChanged {
+            setting,
+            verified,
+            reported,
+        }) = self.disarmed
+        {
+            return Err(BaseError::LimitChanged {
+                setting,
+                verified,
+                reported,
+            });
+        }
         if let Some(DisarmCause::Overspeed {
             measured_mps,
             allowed_mps,
@@ -834,6 +1184,96 @@ impl<L: RmpLink> RmpBase<L> {
             mode_reached,
             armed,
         })
+    }
+
+    /// Compares the forced configuration echo with the limits written; sets the verified
+    /// limits when all match, returns the first mismatch otherwise.
+    fn check_echoed_limits(&mut self, echo: &FeedbackSet) -> Option<DisarmCause> {
+        for (setting, written) in self.config.base_settings() {
+            let read = echo.get_f32(echo_item(setting));
+            if !read.is_some_and(|r| same_setting(written, r)) {
+                return Some(DisarmCause::LimitNotTaken {
+                    setting,
+                    written,
+                    read,
+                });
+            }
+        }
+        self.verified = self.written_limits();
+        None
+    }
+
+    /// The speed and yaw-rate limits as written.
+    fn written_limits(&self) -> Option<VerifiedLimits> {
+        let settings = self.config.base_settings();
+        Some(VerifiedLimits {
+            velocity_mps: settings[0].1,
+            yaw_rate_radps: settings[4].1,
+        })
+    }
+
+    /// A reported speed or yaw-rate limit other than the verified one, if the last set had one.
+    fn limit_changed(&self) -> Option<DisarmCause> {
+        let verified = self.verified?;
+        [
+            (
+                NvmFloat::MaxVelocityMps,
+                verified.velocity_mps,
+                self.reported_limits.0,
+            ),
+            (
+                NvmFloat::MaxTurnRateRadps,
+                verified.yaw_rate_radps,
+                self.reported_limits.1,
+            ),
+        ]
+        .into_iter()
+        .find_map(|(setting, verified, reported)| {
+            let reported = reported?;
+            (!same_setting(verified, reported)).then_some(DisarmCause::LimitChanged {
+                setting,
+                verified,
+                reported,
+            })
+        })
+    }
+
+    /// Older firmware: no forced configuration feedback, so the speed and yaw-rate limits are
+    /// read back from the user feedback (the accelerations cannot be).
+    fn verify_from_user_feedback(&mut self) {
+        if self.verified.is_none()
+            && self.limit_refused.is_none()
+            && self.config.profile != FirmwareProfile::SegwayInc2014
+        {
+            let written = self.written_limits();
+            if let Some(w) = written {
+                let pairs = [
+                    (
+                        NvmFloat::MaxVelocityMps,
+                        w.velocity_mps,
+                        self.reported_limits.0,
+                    ),
+                    (
+                        NvmFloat::MaxTurnRateRadps,
+                        w.yaw_rate_radps,
+                        self.reported_limits.1,
+                    ),
+                ];
+                match pairs
+                    .into_iter()
+                    .find(|(_, written, read)| !read.is_some_and(|r| same_setting(*written, r)))
+                {
+                    None => self.verified = written,
+                    Some((setting, written, read)) => {
+                        self.limit_refused = Some(DisarmCause::LimitNotTaken {
+                            setting,
+                            written,
+                            read,
+                        })
+                    }
+                }
+            }
+        }
     }
 
     fn send_config(&mut self, command: ConfigCommand) -> Result<(), BaseError> {
@@ -931,21 +1371,16 @@ impl<L: RmpLink> RmpBase<L> {
             s.faults = faults;
         }
         let positive = |v: Option<f32>| v.filter(|x| x.is_finite() && *x > 0.0);
-        if let Some(v) = positive(set.get_f32(FeedbackItem::VelocityLimit)) {
-            let configured = self
-                .config
-                .limits
-                .max_forward_mps
-                .max(self.config.limits.max_reverse_mps);
-            if v < configured && !self.low_limit_warned {
-                self.low_limit_warned = true;
-                warn!(
-                    "RMP base reports a velocity limit of {v} m/s, below the configured {configured} m/s: commands are not scaled up to it, so the base drives slower than commanded"
-                );
-            }
+        // The stored limits as reported now (any value, NaN too: it is compared with the
+        // verified one, and anything else disarms).
+        self.reported_limits = (
+            set.get_f32(FeedbackItem::VelocityLimit),
+            set.get_f32(FeedbackItem::YawRateLimit),
+        );
+        if let Some(v) = positive(self.reported_limits.0) {
             s.velocity_limit_mps = v;
         }
-        if let Some(w) = positive(set.get_f32(FeedbackItem::YawRateLimit)) {
+        if let Some(w) = positive(self.reported_limits.1) {
             s.yaw_rate_limit_radps = w;
         }
         if let Some(t) = positive(set.get_f32(FeedbackItem::FramTrackWidth)) {
@@ -984,5 +1419,6 @@ impl<L: RmpLink> RmpBase<L> {
             let dt = now.saturating_sub(previous_stamp).as_secs_f64();
             self.odometry.integrate_velocity(dt);
         }
+        self.verify_from_user_feedback();
     }
 }

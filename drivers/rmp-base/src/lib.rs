@@ -33,8 +33,9 @@ mod link;
 mod odometry;
 
 pub use driver::{
-    BaseError, BaseMode, BaseStatus, ConfigError, DRIVER_FEEDBACK_ITEMS, DisarmCause, RmpBase,
-    RmpBaseConfig, Tick,
+    ACCEL_HEADROOM, BASE_SETTINGS, BaseError, BaseMode, BaseStatus, ConfigError,
+    DRIVER_FEEDBACK_ITEMS, DisarmCause, RmpBase, RmpBaseConfig, Tick, VerifiedLimits, echo_item,
+    same_setting,
 };
 pub use link::{CanLink, LinkError, RmpLink, from_can, to_can};
 pub use odometry::Odometry;

@@ -13,7 +13,8 @@ use rmp_base::{
 use rmp_codec::faults::{self, FaultStatus};
 use rmp_codec::feedback::{FeedbackBitmaps, FeedbackItem, FeedbackLayout, FeedbackSet};
 use rmp_codec::v3::{
-    ConfigCommand, FirmwareProfile, HostCommand, ModeRequest, MotionCommand, OperationalState,
+    ConfigCommand, FirmwareProfile, HostCommand, ModeRequest, MotionCommand, NvmFloat,
+    OperationalState,
 };
 
 const PERIOD: Duration = Duration::from_millis(20);
@@ -24,7 +25,12 @@ struct ScriptedBase {
     state: OperationalState,
     accepts_tractor: bool,
     faults: FaultStatus,
-    velocity_limit_mps: f32,
+    /// Stored float settings (factory values at power-on), in parameter order.
+    nvm: [f32; 11],
+    /// Stores float settings written to it (a real base does).
+    obeys_limits: bool,
+    /// Reports this velocity limit instead of the stored one (a base that changed it).
+    reported_velocity_limit: Option<f32>,
     /// Reported linear velocity; `None`: what the last motion command asks for (normalised
     /// velocity times the reported limit), as a base that follows its commands.
     speed_override_mps: Option<f32>,
@@ -46,7 +52,9 @@ impl ScriptedBase {
             state: OperationalState::Standby,
             accepts_tractor: true,
             faults: FaultStatus::CLEAR,
-            velocity_limit_mps: 2.0,
+            nvm: NvmFloat::ALL.map(NvmFloat::default_value),
+            obeys_limits: true,
+            reported_velocity_limit: None,
             speed_override_mps: None,
             answering: true,
             layout: FeedbackLayout::default(),
@@ -76,6 +84,10 @@ impl ScriptedBase {
                     if let ConfigCommand::ForceConfigFeedback(on) = c {
                         self.forced = on;
                     }
+                    if let (ConfigCommand::SetFloat(setting, value), true) = (c, self.obeys_limits)
+                    {
+                        self.nvm[nvm_index(setting)] = value;
+                    }
                     if c == ConfigCommand::SetOperationalMode(ModeRequest::Tractor)
                         && self.accepts_tractor
                     {
@@ -95,18 +107,24 @@ impl ScriptedBase {
             } else {
                 self.layout
             };
+            let velocity_limit = self
+                .reported_velocity_limit
+                .unwrap_or(self.nvm[nvm_index(NvmFloat::MaxVelocityMps)]);
             let speed_mps = self.speed_override_mps.unwrap_or_else(|| {
-                self.motions.last().map_or(0.0, |m| m.0) * self.velocity_limit_mps
+                self.motions.last().map_or(0.0, |m| m.0)
+                    * self.nvm[nvm_index(NvmFloat::MaxVelocityMps)]
             });
+            let nvm = self.nvm;
             let set = FeedbackSet::from_fn(layout, |item| match item {
+                _ if (76..87).contains(&(item as usize)) => nvm[item as usize - 76].to_bits(),
                 FeedbackItem::UserFeedbackBitmap1 => bitmaps.words()[0],
                 FeedbackItem::UserFeedbackBitmap2 => bitmaps.words()[1],
                 FeedbackItem::UserFeedbackBitmap3 => bitmaps.words()[2],
                 FeedbackItem::UserFeedbackBitmap4 => bitmaps.words()[3],
                 FeedbackItem::OperationalState => self.state.to_word(),
                 FeedbackItem::FaultStatusWord1 => self.faults.words()[0],
-                FeedbackItem::VelocityLimit => self.velocity_limit_mps.to_bits(),
-                FeedbackItem::YawRateLimit => 2.0f32.to_bits(),
+                FeedbackItem::VelocityLimit => velocity_limit.to_bits(),
+                FeedbackItem::YawRateLimit => nvm[nvm_index(NvmFloat::MaxTurnRateRadps)].to_bits(),
                 FeedbackItem::LinearVelocity => speed_mps.to_bits(),
                 _ => 0,
             });
@@ -115,6 +133,10 @@ impl ScriptedBase {
             }
         }
     }
+}
+
+fn nvm_index(setting: NvmFloat) -> usize {
+    NvmFloat::ALL.iter().position(|p| *p == setting).unwrap()
 }
 
 struct Rig {
@@ -160,7 +182,7 @@ impl Rig {
 #[test]
 fn start_up_writes_every_feedback_bitmap_then_commands_motion() {
     let mut rig = Rig::new(RmpBaseConfig::default());
-    for _ in 0..9 {
+    for _ in 0..20 {
         rig.tick().unwrap();
     }
     let written: Vec<_> = rig.base.configs[..4].to_vec();
@@ -175,7 +197,8 @@ fn start_up_writes_every_feedback_bitmap_then_commands_motion() {
         })
         .collect();
     assert_eq!(written, expected);
-    // Then read back through the forced configuration feedback, and switched off again.
+    // Then what the base holds is read through the forced configuration feedback: its factory
+    // limits, so the robot's are written into its stored settings and read back again.
     assert_eq!(
         rig.base.configs[4],
         ConfigCommand::ForceConfigFeedback(true)
@@ -184,6 +207,30 @@ fn start_up_writes_every_feedback_bitmap_then_commands_motion() {
         rig.base.configs[5],
         ConfigCommand::ForceConfigFeedback(false)
     );
+    let limits: Vec<_> = RmpBaseConfig::default()
+        .base_settings()
+        .iter()
+        .map(|(setting, value)| ConfigCommand::SetFloat(*setting, *value))
+        .collect();
+    assert_eq!(rig.base.configs[6..12], limits[..]);
+    assert_eq!(
+        rig.base.configs[6],
+        ConfigCommand::SetFloat(NvmFloat::MaxVelocityMps, 0.5)
+    );
+    assert_eq!(
+        rig.base.configs[12],
+        ConfigCommand::ForceConfigFeedback(true)
+    );
+    assert_eq!(
+        rig.base.configs[13],
+        ConfigCommand::ForceConfigFeedback(false)
+    );
+    let verified = rig.driver.verified_limits().expect("limits verified");
+    assert_eq!((verified.velocity_mps, verified.yaw_rate_radps), (0.5, 1.0));
+    assert_eq!(
+        rig.base.nvm[nvm_index(NvmFloat::MaxDecelerationMps2)],
+        3.923
+    );
     assert!(!rig.base.forced);
     assert!(
         !rig.base.motions.is_empty(),
@@ -191,6 +238,55 @@ fn start_up_writes_every_feedback_bitmap_then_commands_motion() {
     );
     assert!(rig.base.motions.iter().all(|m| *m == (0.0, 0.0)));
     assert_eq!(rig.driver.status().state, Some(OperationalState::Standby));
+}
+
+#[test]
+fn a_base_that_holds_the_limits_already_gets_no_write() {
+    let mut rig = Rig::new(RmpBaseConfig::default());
+    for (setting, value) in RmpBaseConfig::default().base_settings() {
+        rig.base.nvm[nvm_index(setting)] = value;
+    }
+    for _ in 0..20 {
+        rig.tick().unwrap();
+    }
+    assert!(
+        !rig.base
+            .configs
+            .iter()
+            .any(|c| matches!(c, ConfigCommand::SetFloat(..))),
+        "{:?}",
+        rig.base.configs
+    );
+    let verified = rig.driver.verified_limits().expect("limits verified");
+    assert_eq!((verified.velocity_mps, verified.yaw_rate_radps), (0.5, 1.0));
+}
+
+#[test]
+fn a_replay_of_an_older_driver_adopts_the_stored_limits_and_writes_none() {
+    let mut rig = Rig::new(RmpBaseConfig {
+        adopt_stored_limits: true,
+        ..RmpBaseConfig::default()
+    });
+    for _ in 0..20 {
+        rig.tick().unwrap();
+    }
+    assert!(
+        !rig.base
+            .configs
+            .iter()
+            .any(|c| matches!(c, ConfigCommand::SetFloat(..))),
+        "{:?}",
+        rig.base.configs
+    );
+    // The factory limits, as the base holds them.
+    let verified = rig.driver.verified_limits().expect("limits adopted");
+    assert_eq!(
+        (verified.velocity_mps, verified.yaw_rate_radps),
+        (
+            NvmFloat::MaxVelocityMps.default_value(),
+            NvmFloat::MaxTurnRateRadps.default_value()
+        )
+    );
 }
 
 #[test]
@@ -206,10 +302,13 @@ fn velocity_is_limited_and_normalised_by_the_reported_limit() {
         assert!(tick.commanded.speed_mps - last <= 0.01 + 1e-6);
         last = tick.commanded.speed_mps;
     }
-    // Clamped to the driver's 0.5 m/s, sent as 0.5 / 2.0 (the base's reported limit).
+    // Clamped to the driver's 0.5 m/s, sent as 0.5 / 0.5: the base's stored limit, which the
+    // driver wrote and read back (not its factory 2.2352).
     assert_eq!(last, 0.5);
     let (v, _) = *rig.base.motions.last().unwrap();
-    assert!((v - 0.25).abs() < 1e-6, "{v}");
+    assert_eq!(v, 1.0);
+    // Normalised by the verified value all along: every command is commanded / 0.5.
+    assert!(rig.base.motions.iter().all(|m| m.0 <= 1.0));
 }
 
 #[test]
@@ -291,20 +390,158 @@ fn a_silent_base_is_an_error_and_gets_zero_commands() {
 }
 
 #[test]
-fn a_small_reported_limit_never_scales_a_command_up() {
+fn a_later_report_of_another_limit_disarms_until_rearmed() {
     let mut rig = Rig::new(RmpBaseConfig::default());
-    // The base claims 0.05 m/s: normalising 0.2 m/s by it would ask for 4x its limit, i.e.
-    // full speed, whatever the base's real limit is.
-    rig.base.velocity_limit_mps = 0.05;
     rig.enter_tractor();
-    for _ in 0..60 {
+    for _ in 0..30 {
         rig.driver.set_velocity(Twist::new(0.2, 0.0), rig.now);
         rig.tick().unwrap();
     }
-    // Divided by at least the configured 0.5 m/s: never more than 0.2 / 0.5 of the base's limit.
-    let max_v = rig.base.motions.iter().map(|m| m.0).fold(0.0f32, f32::max);
-    assert!(max_v <= 0.4 + 1e-6, "normalised command {max_v}");
-    assert!((max_v - 0.4).abs() < 1e-6, "{max_v}");
+    assert!((rig.base.motions.last().unwrap().0 - 0.4).abs() < 1e-6);
+    // Someone resets the base's settings (a service tool): it now reports 0.45 m/s. Normalised
+    // commands would mean other speeds.
+    rig.base.reported_velocity_limit = Some(0.45);
+    let mut got = None;
+    for _ in 0..3 {
+        rig.driver.set_velocity(Twist::new(0.2, 0.0), rig.now);
+        if let Err(e) = rig.tick() {
+            got = Some(e);
+            break;
+        }
+    }
+    match got {
+        Some(BaseError::LimitChanged {
+            setting,
+            verified,
+            reported,
+        }) => {
+            assert_eq!(setting, NvmFloat::MaxVelocityMps);
+            assert_eq!((verified, reported), (0.5, 0.45));
+        }
+        other => panic!("{other:?}"),
+    }
+    assert!(matches!(
+        rig.driver.disarmed(),
+        Some(DisarmCause::LimitChanged { .. })
+    ));
+    assert_eq!(rig.base.motions.last(), Some(&(0.0, 0.0)));
+    // A re-arm while the report still differs disarms again on the next tick.
+    rig.driver.rearm();
+    rig.driver.set_velocity(Twist::new(0.2, 0.0), rig.now);
+    assert!(matches!(rig.tick(), Err(BaseError::LimitChanged { .. })));
+    assert_eq!(rig.base.motions.last(), Some(&(0.0, 0.0)));
+    // Reported as verified again, and re-armed: it drives.
+    rig.base.reported_velocity_limit = None;
+    rig.tick().ok();
+    rig.driver.rearm();
+    for _ in 0..10 {
+        rig.driver.set_velocity(Twist::new(0.2, 0.0), rig.now);
+        rig.tick().unwrap();
+    }
+    assert!(rig.base.motions.last().unwrap().0 > 0.0);
+}
+
+#[test]
+fn a_base_that_does_not_take_the_limits_is_never_driven() {
+    let mut rig = Rig::new(RmpBaseConfig::default());
+    rig.base.obeys_limits = false; // keeps its factory 2.2352 m/s
+    let mut got = None;
+    rig.driver.request_mode(BaseMode::Tractor, rig.now);
+    for _ in 0..100 {
+        rig.driver.set_velocity(Twist::new(0.3, 0.0), rig.now);
+        if let Err(e) = rig.tick() {
+            got.get_or_insert(e);
+        }
+    }
+    let e = got.expect("the refusal is reported");
+    match &e {
+        BaseError::LimitNotTaken {
+            setting,
+            written,
+            read,
+        } => {
+            assert_eq!(*setting, NvmFloat::MaxVelocityMps);
+            assert_eq!(*written, 0.5);
+            assert_eq!(*read, Some(2.2352));
+        }
+        other => panic!("{other:?}"),
+    }
+    let text = e.to_string();
+    assert!(
+        text.contains("MaxVelocityMps") && text.contains("0.5") && text.contains("2.2352"),
+        "{text}"
+    );
+    // Written and verified three times over before it gave up.
+    let velocity_writes = rig
+        .base
+        .configs
+        .iter()
+        .filter(|c| matches!(c, ConfigCommand::SetFloat(NvmFloat::MaxVelocityMps, _)))
+        .count();
+    assert_eq!(velocity_writes, 3);
+    assert!(rig.driver.verified_limits().is_none());
+    assert_eq!(rig.base.state, OperationalState::Tractor);
+    assert!(rig.base.motions.iter().all(|m| *m == (0.0, 0.0)));
+    // No re-arm helps: the refusal holds for the driver's life.
+    rig.driver.rearm();
+    for _ in 0..10 {
+        rig.driver.set_velocity(Twist::new(0.3, 0.0), rig.now);
+        assert!(matches!(rig.tick(), Err(BaseError::LimitNotTaken { .. })));
+    }
+    assert!(rig.base.motions.iter().all(|m| *m == (0.0, 0.0)));
+}
+
+#[test]
+fn a_safety_stop_ramps_at_the_emergency_deceleration_until_rearmed() {
+    let config = RmpBaseConfig {
+        emergency_decel_mps2: 2.5,
+        ..RmpBaseConfig::default()
+    };
+    let mut rig = Rig::new(config);
+    rig.enter_tractor();
+    for _ in 0..60 {
+        rig.driver.set_velocity(Twist::new(0.5, 0.5), rig.now);
+        rig.tick().unwrap();
+    }
+    rig.driver.safety_stop();
+    assert!(rig.driver.safety_stopping());
+    let mut speeds = vec![0.5f32];
+    let mut yaws = vec![0.5f32];
+    for _ in 0..15 {
+        // Fresh inputs asking for speed change nothing.
+        rig.driver.set_velocity(Twist::new(0.5, 0.5), rig.now);
+        let t = rig.tick().unwrap();
+        speeds.push(t.commanded.speed_mps);
+        yaws.push(t.commanded.yaw_rate_radps);
+    }
+    // 2.5 m/s^2 at 20 ms: 0.05 m/s less per tick (the comfort ramp, 1 m/s^2, would be 0.02),
+    // zero after 10 ticks, and it stays zero.
+    for (i, pair) in speeds.windows(2).enumerate() {
+        let step = pair[0] - pair[1];
+        if pair[0] > 0.0 {
+            assert!((step - 0.05).abs() < 1e-5, "tick {i}: {speeds:?}");
+        } else {
+            assert_eq!(pair[1], 0.0);
+        }
+    }
+    assert_eq!(speeds[10], 0.0, "{speeds:?}");
+    // The frames on the bus say the same: normalised by the verified 0.5 m/s.
+    let sent: Vec<f32> = rig.base.motions[rig.base.motions.len() - 15..]
+        .iter()
+        .map(|m| m.0 * 0.5)
+        .collect();
+    for (frame, commanded) in sent.iter().zip(&speeds[1..]) {
+        assert!((frame - commanded).abs() < 1e-6, "{sent:?} {speeds:?}");
+    }
+    // Yaw at the yaw-acceleration limit (2 rad/s^2: 0.04 rad/s per tick).
+    assert!((yaws[0] - yaws[1] - 0.04).abs() < 1e-5, "{yaws:?}");
+    assert_eq!(rig.base.motions.last(), Some(&(0.0, 0.0)));
+    // Latched until the re-arm, then the comfort ramp up.
+    rig.driver.rearm();
+    assert!(!rig.driver.safety_stopping());
+    rig.driver.set_velocity(Twist::new(0.5, 0.0), rig.now);
+    let t = rig.tick().unwrap();
+    assert!((t.commanded.speed_mps - 0.01).abs() < 1e-6);
 }
 
 #[test]
@@ -463,7 +700,10 @@ fn a_base_that_never_answers_is_reported() {
 fn a_mode_the_base_refuses_times_out() {
     let mut rig = Rig::new(RmpBaseConfig::default());
     rig.base.accepts_tractor = false;
-    rig.tick().unwrap();
+    // Start-up (bitmaps, limits, read-back) first.
+    for _ in 0..15 {
+        rig.tick().unwrap();
+    }
     rig.driver.request_mode(BaseMode::Tractor, rig.now);
     let mut timed_out = false;
     for _ in 0..150 {
@@ -605,4 +845,24 @@ fn bad_configurations_are_refused_with_the_field_named() {
         ..RmpBaseConfig::default()
     };
     assert!(RmpBase::new(CanLink::new(bus.join()), older).is_ok());
+    let soft_stop = RmpBaseConfig {
+        emergency_decel_mps2: 0.5, // below the 1.0 comfort deceleration
+        ..RmpBaseConfig::default()
+    };
+    let err = RmpBase::new(CanLink::new(bus.join()), soft_stop)
+        .err()
+        .unwrap();
+    assert!(err.to_string().contains("emergency_decel_mps2"), "{err}");
+    let too_hard = RmpBaseConfig {
+        emergency_decel_mps2: 9.0,
+        ..RmpBaseConfig::default()
+    };
+    let err = RmpBase::new(CanLink::new(bus.join()), too_hard)
+        .err()
+        .unwrap();
+    assert!(err.to_string().contains("MaxDecelerationMps2"), "{err}");
+    let mut fast = RmpBaseConfig::default();
+    fast.limits.max_forward_mps = 9.0;
+    let err = RmpBase::new(CanLink::new(bus.join()), fast).err().unwrap();
+    assert!(err.to_string().contains("MaxVelocityMps"), "{err}");
 }

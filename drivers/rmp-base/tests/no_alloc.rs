@@ -7,7 +7,9 @@ use can_bus::{CanBus, MemoryBus};
 use motion_control::Twist;
 use rmp_base::{BaseMode, CanLink, RmpBase, RmpBaseConfig, from_can, to_can};
 use rmp_codec::feedback::{FeedbackItem, FeedbackLayout, FeedbackSet};
-use rmp_codec::v3::{ConfigCommand, FirmwareProfile, HostCommand, ModeRequest, OperationalState};
+use rmp_codec::v3::{
+    ConfigCommand, FirmwareProfile, HostCommand, ModeRequest, NvmFloat, OperationalState,
+};
 
 #[global_allocator]
 static GLOBAL: test_support::CountingAlloc = test_support::CountingAlloc;
@@ -28,6 +30,8 @@ fn steady_state_tick_does_not_allocate() {
     let mut state = OperationalState::Standby;
     let mut layout = FeedbackLayout::ForcedConfig;
     let mut forced = false;
+    // The base's stored settings: it keeps what the driver writes.
+    let mut nvm = NvmFloat::ALL.map(NvmFloat::default_value);
     let mut now = Duration::ZERO;
     let mut measured_ticks = 0;
     driver.request_mode(BaseMode::Tractor, now);
@@ -52,6 +56,10 @@ fn steady_state_tick_does_not_allocate() {
                         state = OperationalState::Tractor
                     }
                     ConfigCommand::ForceConfigFeedback(on) => forced = on,
+                    ConfigCommand::SetFloat(setting, value) => {
+                        let index = NvmFloat::ALL.iter().position(|p| *p == setting).unwrap();
+                        nvm[index] = value;
+                    }
                     _ => {}
                 }
             }
@@ -61,6 +69,9 @@ fn steady_state_tick_does_not_allocate() {
                 FeedbackLayout::User(config.feedback)
             };
             let set = FeedbackSet::from_fn(layout, |item| match item {
+                _ if (76..87).contains(&(item as usize)) => nvm[item as usize - 76].to_bits(),
+                FeedbackItem::VelocityLimit => nvm[0].to_bits(),
+                FeedbackItem::YawRateLimit => nvm[5].to_bits(),
                 FeedbackItem::OperationalState => state.to_word(),
                 FeedbackItem::UserFeedbackBitmap1 => config.feedback.words()[0],
                 FeedbackItem::UserFeedbackBitmap2 => config.feedback.words()[1],

@@ -232,7 +232,16 @@ impl World {
         )?;
         let bus = VirtualCanBus::join(&config.bus_name, "sim-rmp")
             .map_err(|e| WorldError::Bus(e.to_string()))?;
-        let sim = SimRmp::new(sim_rmp::SimConfig::default());
+        let mut sim = SimRmp::new(sim_rmp::SimConfig::default());
+        // The base as an earlier start of this robot's executive left it: its F-RAM holds the
+        // robot's limits, which the driver reads back and does not write again. (The first
+        // start on a factory base, which writes them, is tested in rmp-base and sim-rmp.)
+        let driver = grop_onboard::executive::rmp_config_for(&config.robot, BASE_PERIOD);
+        for (setting, value) in driver.base_settings() {
+            if !sim.set_nvm(setting, value) {
+                log::warn!("world: the simulated base refused {setting:?} = {value}");
+            }
+        }
         let limits = base_limits(&sim);
         let base = SimRmpNode::new(FaultyBus::new(bus, config.seed, limits), sim);
         let arm = Ur5eSim::start(sim_ur5e::SimConfig {
@@ -1147,6 +1156,9 @@ impl World {
         let _ = self.ports.world_events.publish(&msg);
     }
 }
+
+/// The executive's base command period (the stored limits do not depend on it).
+const BASE_PERIOD: Duration = Duration::from_millis(20);
 
 /// How long the safeguard input stays open (`safeguard-stop`).
 const SAFEGUARD_OPEN: Duration = Duration::from_secs(2);

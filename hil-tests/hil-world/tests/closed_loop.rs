@@ -85,7 +85,12 @@ fn a_mission_runs_from_camera_frame_to_can_frame_and_is_reported() {
         );
     }
     // The legs ended near their goals, as the localisation noise allows (10 sigma).
-    assert!(report.legs.len() >= 2, "{:?}", report.legs);
+    assert!(
+        report.legs.len() >= 2,
+        "{:?} {:#?}",
+        report.legs,
+        report.events
+    );
     for leg in &report.legs {
         let d = (leg.realised[0] - leg.commanded[0]).hypot(leg.realised[1] - leg.commanded[1]);
         assert!(d < 1.0, "{leg:?}");

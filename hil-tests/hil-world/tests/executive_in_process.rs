@@ -548,6 +548,38 @@ fn a_dead_planner_stops_the_base_within_its_deceleration_ramp() {
 }
 
 #[test]
+fn a_safety_stop_brings_the_base_to_rest_at_the_emergency_deceleration() {
+    // A dead planner is a latched safety stop: the shell asks the driver for its safety stop,
+    // whose ramp is the robot file's emergency deceleration (3.923 m/s^2), not the comfort
+    // 0.5 m/s^2 (0.7 s from 0.35 m/s).
+    let mut h = Harness::new("safety-stop-ramp");
+    h.start_mission();
+    h.drive_until_faster_than(0.35);
+    h.planner_alive = false;
+    assert!(h.run_until(Duration::from_secs(2), false, |h| matches!(
+        h.exec.state(),
+        MissionState::Aborted(_)
+    )));
+    let aborted = h.now;
+    let speed = f64::from(h.base.sim().velocity().0.abs());
+    assert!(h.run_until(Duration::from_secs(3), false, |h| {
+        h.base.sim().velocity().0.abs() < 0.005
+    }));
+    let took = (h.now - aborted).as_secs_f64();
+    let robot = RobotConfig::default();
+    let emergency = speed / robot.emergency_decel_mps2;
+    let comfort = speed / robot.accel_mps2;
+    println!(
+        "safety stop: {speed:.2} m/s to rest in {took:.3} s (emergency ramp {emergency:.3} s, comfort {comfort:.3} s)"
+    );
+    // The emergency ramp plus two base periods (the command reaches the base a tick later).
+    assert!(
+        took <= emergency + 0.045,
+        "{speed:.2} m/s to rest took {took:.3} s: the emergency ramp is {emergency:.3} s, the comfort one {comfort:.3} s"
+    );
+}
+
+#[test]
 fn missing_localisation_holds_the_base_until_fixes_return() {
     let mut h = Harness::new("no-fixes");
     h.start_mission();

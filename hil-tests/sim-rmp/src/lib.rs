@@ -189,6 +189,46 @@ impl SimRmp {
         self.nvm[nvm_index(p)]
     }
 
+    /// Writes one NVM float as a service tool would, behind the host's back (fault injection:
+    /// a limit that changes after the driver verified it). Values outside the parameter's
+    /// range are refused, as the firmware refuses them.
+    pub fn set_nvm(&mut self, p: NvmFloat, value: f32) -> bool {
+        let (min, max) = p.range();
+        if !(value.is_finite() && (min..=max).contains(&value)) {
+            return false;
+        }
+        info!("sim-rmp: {p:?} set to {value} behind the host's back");
+        self.nvm[nvm_index(p)] = value;
+        true
+    }
+
+    /// Power-cycles the base: what the F-RAM holds survives (the float parameters, the input
+    /// configuration and feedback bitmaps, the Ethernet settings: reference §2.5), everything
+    /// else starts over as at power-on (initial state, no faults, no command, at rest, wheel
+    /// and linear integrators zero, user feedback). The base stays where it is.
+    pub fn power_cycle(&mut self) {
+        info!("sim-rmp: power cycle (NVM kept: {:?})", self.nvm);
+        let kept = (
+            self.nvm,
+            self.input_config_bitmap,
+            self.ethernet,
+            self.bitmaps,
+            self.pose,
+            self.time,
+            self.stats,
+        );
+        *self = SimRmp::new(self.config);
+        (
+            self.nvm,
+            self.input_config_bitmap,
+            self.ethernet,
+            self.bitmaps,
+            self.pose,
+            self.time,
+            self.stats,
+        ) = kept;
+    }
+
     /// Operational state.
     pub fn state(&self) -> OperationalState {
         self.state

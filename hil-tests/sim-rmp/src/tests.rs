@@ -233,3 +233,61 @@ fn power_down_goes_silent() {
     assert!(sim.is_silent());
     assert!(sim.handle_frame(&motion(0.0, 0.0), 110 * MS).is_none());
 }
+
+#[test]
+fn stored_limits_start_at_factory_survive_a_power_cycle_and_bound_the_speed() {
+    let mut sim = SimRmp::new(SimConfig::default());
+    // Factory values at power-on, reported in the user feedback and the forced echo.
+    assert_eq!(sim.nvm(NvmFloat::MaxVelocityMps), 2.2352);
+    let set = sim.handle_frame(&motion(0.0, 0.0), 10 * MS).unwrap();
+    assert_eq!(set.get_f32(FeedbackItem::VelocityLimit), Some(2.2352));
+    assert_eq!(set.get_f32(FeedbackItem::YawRateLimit), Some(3.0));
+    // A host writes the robot's limits.
+    for (p, v) in [
+        (NvmFloat::MaxVelocityMps, 0.4f32),
+        (NvmFloat::MaxTurnRateRadps, 1.0),
+        (NvmFloat::MaxAccelerationMps2, 0.5),
+    ] {
+        sim.handle_frame(&config(ConfigCommand::SetFloat(p, v)), 20 * MS);
+    }
+    sim.handle_frame(&config(ConfigCommand::ForceConfigFeedback(true)), 30 * MS);
+    let echo = sim
+        .handle_frame(&config(ConfigCommand::None), 40 * MS)
+        .unwrap();
+    assert_eq!(echo.get_f32(FeedbackItem::FramVelocityLimit), Some(0.4));
+    assert_eq!(echo.get_f32(FeedbackItem::FramYawRateLimit), Some(1.0));
+    assert_eq!(echo.get_f32(FeedbackItem::FramAccelLimit), Some(0.5));
+    sim.handle_frame(&config(ConfigCommand::ForceConfigFeedback(false)), 50 * MS);
+    // Power cycle: F-RAM kept, the rest as at power-on.
+    sim.handle_frame(
+        &config(ConfigCommand::SetOperationalMode(ModeRequest::Tractor)),
+        60 * MS,
+    );
+    sim.advance(200 * MS);
+    assert_eq!(sim.state(), OperationalState::Tractor);
+    sim.power_cycle();
+    assert_eq!(sim.state(), OperationalState::Standby);
+    assert_eq!(sim.nvm(NvmFloat::MaxVelocityMps), 0.4);
+    assert!(!matches!(sim.layout(), FeedbackLayout::ForcedConfig));
+    let set = sim.handle_frame(&motion(0.0, 0.0), 210 * MS).unwrap();
+    assert_eq!(set.get_f32(FeedbackItem::VelocityLimit), Some(0.4));
+    assert_eq!(set.get_f32(FeedbackItem::YawRateLimit), Some(1.0));
+    // Full command in tractor: the base runs at its stored 0.4 m/s, never faster.
+    sim.handle_frame(
+        &config(ConfigCommand::SetOperationalMode(ModeRequest::Tractor)),
+        220 * MS,
+    );
+    let mut t = 300 * MS;
+    let mut top = 0.0f32;
+    for _ in 0..200 {
+        sim.handle_frame(&motion(1.0, 1.0), t);
+        top = top.max(sim.velocity().0);
+        t += 10 * MS;
+    }
+    assert_eq!(top, 0.4);
+    assert!((sim.velocity().1 - 1.0).abs() < 1e-6);
+    // Out-of-range writes are refused (by the codec on the bus, by `set_nvm` here).
+    assert!(!sim.set_nvm(NvmFloat::MaxVelocityMps, 9.0));
+    assert!(sim.set_nvm(NvmFloat::MaxVelocityMps, 0.3));
+    assert_eq!(sim.nvm(NvmFloat::MaxVelocityMps), 0.3);
+}

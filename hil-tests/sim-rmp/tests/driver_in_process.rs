@@ -9,7 +9,7 @@ use can_bus::{MemoryBus, MemoryBusNode};
 use motion_control::Twist;
 use rmp_base::{BaseError, BaseMode, CanLink, Odometry, RmpBase, RmpBaseConfig};
 use rmp_codec::faults;
-use rmp_codec::v3::OperationalState;
+use rmp_codec::v3::{NvmFloat, OperationalState};
 use sim_rmp::{SimConfig, SimPose, SimRmp, SimRmpNode};
 
 const PERIOD: Duration = Duration::from_millis(20);
@@ -184,4 +184,85 @@ fn a_silenced_base_is_reported_and_recovers_after_rearm() {
     assert_eq!(rig.driver.rearm(), Some(rmp_base::DisarmCause::LinkLost));
     rig.drive(Twist::new(0.3, 0.0), Duration::from_millis(500));
     assert!(rig.sim.sim().velocity().0 > 0.1);
+}
+
+#[test]
+fn the_driver_writes_the_stored_limits_and_stops_the_base_when_they_change() {
+    let mut rig = Rig::new(1.0);
+    // Factory NVM before the driver's start-up: 5.6 times what the robot may do.
+    assert_eq!(rig.sim.sim().nvm(NvmFloat::MaxVelocityMps), 2.2352);
+    rig.enter_tractor();
+    let config = RmpBaseConfig::default();
+    for (setting, value) in config.base_settings() {
+        assert_eq!(rig.sim.sim().nvm(setting), value, "{setting:?}");
+    }
+    assert_eq!(rig.sim.sim().nvm(NvmFloat::MaxVelocityMps), 0.5);
+    let verified = rig.driver.verified_limits().unwrap();
+    assert_eq!(verified.velocity_mps, 0.5);
+    // Asking for more than the robot may do: the base runs at the stored 0.5 m/s.
+    rig.drive(Twist::new(3.0, 0.0), Duration::from_secs(2));
+    assert!((rig.sim.sim().velocity().0 - 0.5).abs() < 1e-6);
+    // A service tool raises the stored limit behind the driver's back: the same normalised
+    // command would now mean 1.5 m/s. The driver stops the base and names the setting.
+    assert!(rig.sim.sim_mut().set_nvm(NvmFloat::MaxVelocityMps, 1.5));
+    let mut named = None;
+    for _ in 0..5 {
+        rig.driver.set_velocity(Twist::new(0.5, 0.0), rig.now);
+        if let Err(e) = rig.step() {
+            named.get_or_insert(e);
+        }
+    }
+    match named {
+        Some(BaseError::LimitChanged {
+            setting, reported, ..
+        }) => {
+            assert_eq!(setting, NvmFloat::MaxVelocityMps);
+            assert_eq!(reported, 1.5);
+        }
+        other => panic!("{other:?}"),
+    }
+    // Zero commanded since: at rest within 0.5 / 3.923 s, never above the old 0.5 m/s.
+    let mut top = 0.0f32;
+    for _ in 0..20 {
+        rig.driver.set_velocity(Twist::new(0.5, 0.0), rig.now);
+        rig.step().ok();
+        top = top.max(rig.sim.sim().velocity().0);
+    }
+    assert!(top <= 0.5 + 1e-6, "{top}");
+    assert_eq!(rig.sim.sim().velocity().0, 0.0);
+}
+
+#[test]
+fn a_safety_stop_brings_the_simulated_base_to_rest_at_the_emergency_deceleration() {
+    let bus = MemoryBus::new();
+    let sim = SimRmpNode::new(bus.join(), SimRmp::new(SimConfig::default()));
+    let config = RmpBaseConfig {
+        emergency_decel_mps2: 2.5,
+        ..RmpBaseConfig::default()
+    };
+    let driver = RmpBase::new(CanLink::new(bus.join()), config).unwrap();
+    let mut rig = Rig {
+        sim,
+        driver,
+        now: Duration::ZERO,
+    };
+    rig.enter_tractor();
+    assert_eq!(rig.sim.sim().nvm(NvmFloat::MaxDecelerationMps2), 2.5);
+    rig.drive(Twist::new(0.5, 0.0), Duration::from_secs(2));
+    assert!((rig.sim.sim().velocity().0 - 0.5).abs() < 1e-6);
+    rig.driver.safety_stop();
+    let stopped_at = rig.now;
+    let mut at_rest = None;
+    for _ in 0..30 {
+        rig.driver.set_velocity(Twist::new(0.5, 0.0), rig.now);
+        rig.step().unwrap();
+        if at_rest.is_none() && rig.sim.sim().velocity().0 == 0.0 {
+            at_rest = Some(rig.now - stopped_at);
+        }
+    }
+    // 0.5 m/s at 2.5 m/s^2: 0.2 s (plus up to two periods of command latency); the comfort
+    // 1 m/s^2 would take 0.5 s.
+    let at_rest = at_rest.expect("at rest");
+    assert!(at_rest <= Duration::from_millis(260), "{at_rest:?}");
+    assert!(at_rest >= Duration::from_millis(200), "{at_rest:?}");
 }

@@ -40,6 +40,12 @@ pub struct RobotConfig {
     pub yaw_rate_radps: f64,
     /// Turning-acceleration limit of the base (rad/s^2).
     pub yaw_accel_radps2: f64,
+    /// Deceleration of a safety stop (m/s^2): e-stop, kill switch, lost link, base fault...
+    /// At least `accel_mps2` (the comfort deceleration), at most [`MAX_EMERGENCY_DECEL_MPS2`].
+    /// Optional in the file; default [`DEFAULT_EMERGENCY_DECEL_MPS2`], the RMP's factory
+    /// deceleration limit (what the base itself does on a lost link).
+    #[serde(default = "default_emergency_decel")]
+    pub emergency_decel_mps2: f64,
     /// Standard deviation of the realised base position around a navigation goal, per axis (m).
     pub nav_noise_sigma_m: f64,
     /// Reward R for a placed object in the utility U = R * F - C (paper eq. 3; 40).
@@ -64,6 +70,16 @@ pub const MAX_CARRY_CAPACITY: u32 = 64;
 
 fn default_carry_capacity() -> u32 {
     DEFAULT_CARRY_CAPACITY
+}
+
+/// `emergency_decel_mps2` of a robot file without it: the RMP's factory deceleration limit
+/// (and decel-to-zero rate), m/s^2.
+pub const DEFAULT_EMERGENCY_DECEL_MPS2: f64 = 3.923;
+/// Highest `emergency_decel_mps2`: the most deceleration the RMP's stored limit accepts, m/s^2.
+pub const MAX_EMERGENCY_DECEL_MPS2: f64 = 7.848;
+
+fn default_emergency_decel() -> f64 {
+    DEFAULT_EMERGENCY_DECEL_MPS2
 }
 
 /// How the trial simulator decides whether the realised base pose collides.
@@ -129,6 +145,7 @@ impl Default for RobotConfig {
             accel_mps2: 0.5,
             yaw_rate_radps: 1.0,
             yaw_accel_radps2: 1.5,
+            emergency_decel_mps2: DEFAULT_EMERGENCY_DECEL_MPS2,
             nav_noise_sigma_m: 0.1,
             success_bonus_r: 40.0,
             base_collision: BaseCollisionModel::Footprint,
@@ -308,6 +325,7 @@ impl RobotConfig {
             ("accel_mps2", self.accel_mps2),
             ("yaw_rate_radps", self.yaw_rate_radps),
             ("yaw_accel_radps2", self.yaw_accel_radps2),
+            ("emergency_decel_mps2", self.emergency_decel_mps2),
         ];
         for (field, value) in positive {
             if value <= 0.0 {
@@ -328,6 +346,11 @@ impl RobotConfig {
                 self.yaw_accel_radps2,
                 MAX_YAW_ACCEL_RADPS2,
             ),
+            (
+                "emergency_decel_mps2",
+                self.emergency_decel_mps2,
+                MAX_EMERGENCY_DECEL_MPS2,
+            ),
         ];
         for (field, value, max) in at_most {
             if value > max {
@@ -336,6 +359,17 @@ impl RobotConfig {
                     format!("at most {max} (the base's own limit), found {value}"),
                 ));
             }
+        }
+        // A safety stop is never gentler than a comfortable one (the base decelerates at
+        // `accel_mps2` in normal driving).
+        if self.emergency_decel_mps2 < self.accel_mps2 {
+            return Err(InvalidField::new(
+                "emergency_decel_mps2",
+                format!(
+                    "at least accel_mps2 ({}, the comfort deceleration), found {}",
+                    self.accel_mps2, self.emergency_decel_mps2
+                ),
+            ));
         }
         let non_negative = [
             ("nav_noise_sigma_m", self.nav_noise_sigma_m),

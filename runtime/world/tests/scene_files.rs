@@ -267,12 +267,37 @@ fn bad_robot_files_name_the_field() {
             "yaw_accel_radps2 = 100.0",
             "yaw_accel_radps2",
         ),
+        (
+            "emergency_decel_mps2 = 3.923",
+            "emergency_decel_mps2 = 8.0",
+            "emergency_decel_mps2",
+        ),
     ] {
         let bad = good.replacen(from, to, 1);
         assert_ne!(bad, good, "the default file has {from}");
         let msg = robot_error(&bad);
         assert!(msg.contains(field) && msg.contains("at most"), "{msg}");
     }
+    // The safety stop's deceleration: positive, never gentler than the comfort deceleration.
+    for (to, words) in [
+        ("emergency_decel_mps2 = 0.0", "must be positive"),
+        ("emergency_decel_mps2 = 0.3", "at least accel_mps2"),
+        ("emergency_decel_mps2 = inf", "finite"),
+    ] {
+        let msg = robot_error(&good.replacen("emergency_decel_mps2 = 3.923", to, 1));
+        assert!(
+            msg.contains("emergency_decel_mps2") && msg.contains(words),
+            "{msg}"
+        );
+    }
+    // A file written before the field loads with the RMP's factory deceleration.
+    let without = good.replacen("emergency_decel_mps2 = 3.923\n", "", 1);
+    assert_ne!(without, good);
+    let old = RobotConfig::from_toml_str(&without, "old.toml").expect("loads without the field");
+    assert_eq!(
+        old.emergency_decel_mps2,
+        world::robot::DEFAULT_EMERGENCY_DECEL_MPS2
+    );
     let msg = robot_error(&good.replacen("speed_mps = 0.4", "speed_mps = 0.4\nturbo = true", 1));
     assert!(msg.contains("turbo"), "{msg}");
     let msg = robot_error(&good.replacen("format_version = 2", "format_version = 7", 1));

@@ -130,6 +130,10 @@ where
         [] => Ok(()),
         ["quit"] => return Ok(false),
         ["silent", state] => on(state).map(|s| node.sim_mut().set_silent(s)),
+        ["power-cycle"] => {
+            node.sim_mut().power_cycle();
+            Ok(())
+        }
         ["fault", name, state] => match fault_by_name(name) {
             Some(fault) => on(state).map(|s| node.sim_mut().set_fault(fault, s)),
             None => Err(anyhow::anyhow!("unknown fault {name:?}")),

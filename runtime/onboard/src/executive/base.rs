@@ -12,8 +12,12 @@ use rmp_base::{BaseError, BaseMode, BaseStatus, Odometry, RmpBase, RmpLink, Tick
 pub trait BaseDevice {
     /// Asks for a mode (the device sends and re-sends the request on its ticks).
     fn request_mode(&mut self, mode: BaseMode, now: Duration);
-    /// The explicit acknowledgement after which a disarmed driver may move again.
+    /// The explicit acknowledgement after which a disarmed driver may move again (it also
+    /// releases a [`safety_stop`](Self::safety_stop)).
     fn rearm(&mut self);
+    /// A latched safety stop: ramp to zero at the robot file's emergency deceleration (not the
+    /// comfort one) and command zero until [`rearm`](Self::rearm).
+    fn safety_stop(&mut self);
     /// Sets the velocity target and marks it fresh at `now`.
     fn set_velocity(&mut self, target: Twist, now: Duration);
     /// One command period: read feedback, send one command.
@@ -33,6 +37,10 @@ impl<L: RmpLink> BaseDevice for RmpBase<L> {
 
     fn rearm(&mut self) {
         RmpBase::rearm(self);
+    }
+
+    fn safety_stop(&mut self) {
+        RmpBase::safety_stop(self);
     }
 
     fn set_velocity(&mut self, target: Twist, now: Duration) {
@@ -63,6 +71,8 @@ pub enum BaseCall {
     RequestMode(BaseMode),
     /// `rearm`.
     Rearm,
+    /// `safety_stop`.
+    SafetyStop,
     /// `set_velocity` with this target.
     SetVelocity(Twist),
     /// `tick`; whether it returned an error.
@@ -131,6 +141,12 @@ impl<D: BaseDevice> BaseDevice for RecordingBase<D> {
         self.inner.rearm();
     }
 
+    fn safety_stop(&mut self) {
+        let at = self.inner.odometry().stamp;
+        self.record(at, BaseCall::SafetyStop);
+        self.inner.safety_stop();
+    }
+
     fn set_velocity(&mut self, target: Twist, now: Duration) {
         self.record(now, BaseCall::SetVelocity(target));
         self.inner.set_velocity(target, now);
@@ -176,6 +192,8 @@ pub struct ScriptedBase {
     pub ticks: u64,
     /// The last velocity a tick sent.
     pub sent: Twist,
+    /// A safety stop is latched: ticks send zero until `rearm`.
+    pub safety_stopped: bool,
 }
 
 impl Default for ScriptedBase {
@@ -206,6 +224,7 @@ impl ScriptedBase {
             fail_silent: false,
             ticks: 0,
             sent: Twist::ZERO,
+            safety_stopped: false,
         }
     }
 
@@ -225,7 +244,13 @@ impl BaseDevice for ScriptedBase {
         });
     }
 
-    fn rearm(&mut self) {}
+    fn rearm(&mut self) {
+        self.safety_stopped = false;
+    }
+
+    fn safety_stop(&mut self) {
+        self.safety_stopped = true;
+    }
 
     fn set_velocity(&mut self, target: Twist, _now: Duration) {
         self.target = target;
@@ -245,6 +270,9 @@ impl BaseDevice for ScriptedBase {
                 silent_for: Duration::from_secs(1),
                 timeout: Duration::from_millis(200),
             });
+        }
+        if self.safety_stopped {
+            self.target = Twist::ZERO;
         }
         self.sent = self.target;
         let (v, w) = (

@@ -124,8 +124,13 @@ pub struct CycleOutputs {
     pub monitor_mode: MonitorMode,
     /// A base mode to request.
     pub base_mode: Option<BaseMode>,
-    /// Re-arm the base driver (the one explicit acknowledgement at mission start).
+    /// Re-arm the base driver (the explicit acknowledgement at mission start, and the
+    /// operator's enable releasing a latched safety stop).
     pub rearm_base: bool,
+    /// A latched safety stop was taken (an abort for a safety cause, a UR safety stop): the
+    /// base ramps to zero at the emergency deceleration until re-armed. Operational holds
+    /// (monitor stops, stale scans, no localisation, waiting for a plan) do not set it.
+    pub safety_stop: bool,
     /// The arm command.
     pub arm: ArmCommand,
     /// A job for the planning worker.
@@ -150,6 +155,7 @@ impl Default for CycleOutputs {
             monitor_mode: MonitorMode::Normal,
             base_mode: None,
             rearm_base: false,
+            safety_stop: false,
             arm: ArmCommand::None,
             job: None,
             request: None,
@@ -168,6 +174,7 @@ impl CycleOutputs {
         self.monitor_mode = MonitorMode::Normal;
         self.base_mode = None;
         self.rearm_base = false;
+        self.safety_stop = false;
         self.arm = ArmCommand::None;
         self.job = None;
         self.request = None;

@@ -435,6 +435,11 @@ impl MissionCore {
             Err(BaseError::SecondCommander { .. }) => {
                 self.abort(AbortReason::SecondCommander, now, outputs)
             }
+            // The base's stored limits are not the robot's (never taken, or changed behind the
+            // driver's back): its normalised commands would mean other speeds.
+            Err(BaseError::LimitNotTaken { .. } | BaseError::LimitChanged { .. }) => {
+                self.abort(AbortReason::BaseFault, now, outputs)
+            }
             _ => {}
         }
     }
@@ -991,6 +996,11 @@ impl MissionCore {
     pub(super) fn abort(&mut self, reason: AbortReason, now: Duration, outputs: &mut CycleOutputs) {
         self.velocity = Twist::ZERO;
         outputs.velocity = Twist::ZERO;
+        // Every abort but the operator's own shutdown and refused plans is a safety stop: the
+        // base ramps at the emergency deceleration.
+        if !matches!(reason, AbortReason::Shutdown | AbortReason::PlansRefused) {
+            outputs.safety_stop = true;
+        }
         if !self.arm_stopped_sent {
             self.arm_stopped_sent = true;
             outputs.arm = ArmCommand::Stop;

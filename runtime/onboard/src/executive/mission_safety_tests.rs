@@ -149,3 +149,62 @@ fn a_base_that_leaves_tractor_mode_unasked_is_a_safety_stop() {
         assert_eq!(b.out.base_mode, None);
     }
 }
+
+#[test]
+fn a_latched_stop_asks_the_base_for_its_safety_stop_and_a_hold_does_not() {
+    // Operational holds: the collision monitor's stop and a stale scan, waiting for a path.
+    let mut b = driving();
+    for monitor in [MonitorAction::Stop, MonitorAction::Stale] {
+        for _ in 0..10 {
+            b.step(|i| i.monitor = monitor);
+            assert!(!b.out.safety_stop, "{monitor:?} is a hold");
+        }
+    }
+    for _ in 0..10 {
+        b.step(|_| {});
+        assert!(!b.out.safety_stop);
+    }
+    // A UR safeguard stop latches: the base's safety stop; the enable once it cleared re-arms.
+    b.step(|i| {
+        i.arm = arm_in(5, 7);
+        i.operator_enable = false;
+    });
+    assert!(b.out.safety_stop, "a safeguard stop is a safety stop");
+    b.step(|i| {
+        i.arm = arm_in(1, 7);
+        i.operator_enable = false;
+    });
+    assert!(!b.out.rearm_base, "no re-arm before the enable");
+    b.step(|i| {
+        i.arm = arm_in(1, 7);
+        i.operator_enable = true;
+    });
+    assert!(b.core.latch().is_none());
+    assert!(
+        b.out.rearm_base,
+        "the enable releases the base's safety stop"
+    );
+    assert!(!b.out.safety_stop);
+    // Aborts for a safety cause: a base that does not keep its stored limits, a lost mode.
+    let limit = Err(BaseError::LimitChanged {
+        setting: rmp_codec::v3::NvmFloat::MaxVelocityMps,
+        verified: 0.4,
+        reported: 2.2352,
+    });
+    let mut b = driving();
+    b.step(|i| i.base_tick = Some(&limit));
+    assert_eq!(
+        b.core.state(),
+        MissionState::Aborted(AbortReason::BaseFault)
+    );
+    assert!(b.out.safety_stop);
+    let mut b = driving();
+    b.tractor = false;
+    b.step(|_| {});
+    assert!(b.out.safety_stop, "a mode drop is a safety stop");
+    // The operator's shutdown is not.
+    let mut b = driving();
+    b.step(|i| i.shutdown = true);
+    assert_eq!(b.core.state(), MissionState::Aborted(AbortReason::Shutdown));
+    assert!(!b.out.safety_stop);
+}

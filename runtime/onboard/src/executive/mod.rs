@@ -62,7 +62,7 @@ use unload::{ArmFault, ArmPort};
 pub use base::BaseDevice;
 pub use cycle::{ArmCommand, BaseReading, CycleInputs, CycleOutputs, MonitorAction, MonitorMode};
 pub use mission::MissionCore;
-pub use shell::{Executive, ExecutivePorts, RmpExecutive};
+pub use shell::{Executive, ExecutivePorts, RmpExecutive, rmp_config_for};
 
 /// What the executive needs of the arm besides the unload skills.
 pub trait ArmDevice: ArmPort {
@@ -151,6 +151,10 @@ pub struct ExecutiveConfig {
     pub allow_reduced_mode: bool,
     /// The node allowed to publish each command input (docs/security.md).
     pub inputs: inputs::InputSources,
+    /// Replays only: the RMP driver takes the stored limits the base echoes at start-up as
+    /// verified and writes none ([`rmp_base::RmpBaseConfig::adopt_stored_limits`]), as the
+    /// driver did before it kept the robot's limits in the base. Never on a robot.
+    pub adopt_base_limits: bool,
 }
 
 impl ExecutiveConfig {
@@ -188,6 +192,7 @@ impl ExecutiveConfig {
             stall_after: Duration::from_secs(1),
             allow_reduced_mode: true,
             inputs: inputs::InputSources::default(),
+            adopt_base_limits: false,
         }
     }
 }

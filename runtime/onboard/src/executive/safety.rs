@@ -164,6 +164,7 @@ impl MissionCore {
         }
         self.velocity = Twist::ZERO;
         outputs.velocity = Twist::ZERO;
+        outputs.safety_stop = true;
         match &mut self.latch {
             Some(latch) => latch.cleared = false,
             None => {
@@ -219,6 +220,8 @@ impl MissionCore {
             return;
         }
         self.latch = None;
+        // The driver's safety stop is released by the same acknowledgement as at start.
+        outputs.rearm_base = true;
         match self.phase.take() {
             Some(Phase::Unloading | Phase::PlanningArm { .. }) => {
                 // The arm stopped mid-unload: the unload counts as failed and is planned

@@ -145,16 +145,30 @@ pub type RmpExecutive<B, A> = Executive<RmpBase<CanLink<B>>, A>;
 /// The RMP driver's configuration for the robot file's limits (the follower plans within them;
 /// the driver's limiter enforces them).
 fn rmp_config(config: &ExecutiveConfig) -> rmp_base::RmpBaseConfig {
+    rmp_base::RmpBaseConfig {
+        adopt_stored_limits: config.adopt_base_limits,
+        ..rmp_config_for(&config.robot, config.cycle * config.base_every)
+    }
+}
+
+/// The RMP driver's configuration for `robot`'s limits at `command_period`: what the executive
+/// runs the driver with (its [`rmp_base::RmpBaseConfig::base_settings`] are the limits it keeps
+/// in the base's stored settings).
+pub fn rmp_config_for(
+    robot: &world::RobotConfig,
+    command_period: std::time::Duration,
+) -> rmp_base::RmpBaseConfig {
     let mut base_config = rmp_base::RmpBaseConfig {
-        command_period: config.cycle * config.base_every,
+        command_period,
         ..rmp_base::RmpBaseConfig::default()
     };
-    base_config.limits.max_forward_mps = config.robot.speed_mps as f32;
-    base_config.limits.max_reverse_mps = (0.5 * config.robot.speed_mps) as f32;
-    base_config.limits.max_yaw_rate_radps = config.robot.yaw_rate_radps as f32;
-    base_config.limits.max_accel_mps2 = config.robot.accel_mps2 as f32;
-    base_config.limits.max_decel_mps2 = config.robot.accel_mps2 as f32;
-    base_config.limits.max_yaw_accel_radps2 = config.robot.yaw_accel_radps2 as f32;
+    base_config.limits.max_forward_mps = robot.speed_mps as f32;
+    base_config.limits.max_reverse_mps = (0.5 * robot.speed_mps) as f32;
+    base_config.limits.max_yaw_rate_radps = robot.yaw_rate_radps as f32;
+    base_config.limits.max_accel_mps2 = robot.accel_mps2 as f32;
+    base_config.limits.max_decel_mps2 = robot.accel_mps2 as f32;
+    base_config.limits.max_yaw_accel_radps2 = robot.yaw_accel_radps2 as f32;
+    base_config.emergency_decel_mps2 = robot.emergency_decel_mps2 as f32;
     base_config
 }
 
@@ -393,6 +407,9 @@ impl<D: BaseDevice, A: ArmDevice> Executive<D, A> {
     fn abort_now(&mut self, reason: AbortReason, now: Duration) {
         self.outputs.clear();
         self.core.abort(reason, now, &mut self.outputs);
+        if self.outputs.safety_stop {
+            self.base.safety_stop();
+        }
         self.base.set_velocity(self.outputs.velocity, now);
         self.write_arm(now);
         self.write_messages();
@@ -604,6 +621,9 @@ impl<D: BaseDevice, A: ArmDevice> Executive<D, A> {
         }
         if self.outputs.rearm_base {
             self.base.rearm();
+        }
+        if self.outputs.safety_stop {
+            self.base.safety_stop();
         }
         self.write_messages();
         self.publish_arm_state(now);

@@ -418,6 +418,9 @@ fn replay_in(
 
     // The recorded inputs.
     let mut tape: Vec<(u64, CanFrame)> = Vec::new();
+    // Whether the recorded driver wrote stored settings into the base (it writes the robot's
+    // limits where the base holds others; before issue 25 it never did).
+    let mut wrote_settings = false;
     let mut arm_calls: Vec<ArmIoMsg> = Vec::new();
     let mut inputs: Vec<&LoggedMessage> = Vec::new();
     for m in &log.messages {
@@ -426,6 +429,16 @@ fn replay_in(
                 let f = codec::decode_can(&m.data).map_err(at("a logged CAN frame"))?;
                 if !HOST_IDS.contains(&f.id().raw()) {
                     tape.push((m.log_time, f));
+                } else if rmp_base::from_can(&f).is_some_and(|raw| {
+                    matches!(
+                        rmp_codec::v3::ConfigCommand::decode(
+                            rmp_codec::v3::FirmwareProfile::SegwayInc2014,
+                            &raw
+                        ),
+                        Ok(rmp_codec::v3::ConfigCommand::SetFloat(..))
+                    )
+                }) {
+                    wrote_settings = true;
                 }
             }
             Channel::ArmIo => {
@@ -514,6 +527,9 @@ fn replay_in(
             let mut config = ExecutiveConfig::for_robot(&robot);
             config.inputs.fixes = "replay-world".into();
             config.inputs.operator = "replay-world".into();
+            // A recorded driver that wrote no limits took the base's as they were (a log from
+            // before issue 25, or a base configured by an earlier start): replay it so.
+            config.adopt_base_limits = !wrote_settings;
             let mut exec = Executive::new(
                 config,
                 Arc::clone(&clock),
