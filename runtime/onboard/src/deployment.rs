@@ -75,6 +75,9 @@ pub enum DeploymentError {
     },
 }
 
+/// Most bytes a deployment file may have (a real one is about 2 kB).
+pub const MAX_DEPLOYMENT_FILE_BYTES: u64 = 1 << 20;
+
 /// Where the base's CAN frames go.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub enum CanSpec {
@@ -352,11 +355,28 @@ struct PlannerFile {
 impl Deployment {
     /// Reads and validates a deployment file.
     pub fn load(path: impl AsRef<Path>) -> Result<Self, DeploymentError> {
+        use std::io::Read;
         let path = path.as_ref();
-        let text = std::fs::read_to_string(path).map_err(|source| DeploymentError::Read {
+        let read = |source| DeploymentError::Read {
             path: path.to_owned(),
             source,
-        })?;
+        };
+        // At most MAX_DEPLOYMENT_FILE_BYTES (+1 to tell that there is more): a bigger file, or
+        // a special file that never ends, is refused before it fills the memory.
+        let mut text = String::new();
+        std::fs::File::open(path)
+            .map_err(read)?
+            .take(MAX_DEPLOYMENT_FILE_BYTES + 1)
+            .read_to_string(&mut text)
+            .map_err(read)?;
+        if text.len() as u64 > MAX_DEPLOYMENT_FILE_BYTES {
+            return Err(DeploymentError::Parse {
+                path: path.to_owned(),
+                message: format!(
+                    "larger than the {MAX_DEPLOYMENT_FILE_BYTES} bytes a deployment file may have"
+                ),
+            });
+        }
         Self::from_toml_str(&text, path)
     }
 
@@ -600,6 +620,27 @@ retry = "replan"
 
     fn parse(text: &str) -> Result<Deployment, DeploymentError> {
         Deployment::from_toml_str(text, Path::new("/srv/grop/deployment.toml"))
+    }
+
+    #[test]
+    fn a_file_larger_than_the_cap_is_refused_before_it_is_read_whole() {
+        let dir = std::env::temp_dir().join(format!("grop-deploy-cap-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("deployment.toml");
+        // A valid file padded with a comment past the cap.
+        let mut text = FULL.to_owned();
+        text.push('#');
+        text.push_str(&"x".repeat(MAX_DEPLOYMENT_FILE_BYTES as usize));
+        std::fs::write(&path, &text).unwrap();
+        let e = Deployment::load(&path).unwrap_err().to_string();
+        assert!(
+            e.contains("larger than") && e.contains("deployment.toml"),
+            "{e}"
+        );
+        // A file that never ends (a character device) is refused the same way.
+        let e = Deployment::load("/dev/zero").unwrap_err().to_string();
+        assert!(e.contains("larger than"), "{e}");
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]
