@@ -26,12 +26,14 @@
 )]
 
 mod futex;
+mod manual;
 pub mod rt;
 mod sim;
 mod wait;
 
 use std::time::Duration;
 
+pub use manual::ManualClock;
 pub use sim::{Departure, HostConfig, MAX_PARTICIPANTS, SimClock, SimClockHost};
 pub use wait::{MAX_WAIT_FDS, wait_readable};
 

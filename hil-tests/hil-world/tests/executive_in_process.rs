@@ -13,7 +13,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Duration;
 
 use can_bus::{MemoryBus, MemoryBusNode};
-use grop_clock::Clock;
+use grop_clock::{Clock, ManualClock};
 use grop_ipc::{
     BasePoseMsg, BaseStateMsg, EventKind, EventMsg, HeartbeatMsg, IpcNode, PoseFixKind,
     ProcessRole, ReplanRequestMsg, TableSide, TaskPlanMsg, TaskStep, TopicPublisher,
@@ -43,28 +43,6 @@ fn namespace(test: &str) -> String {
         std::process::id(),
         N.fetch_add(1, Ordering::Relaxed)
     )
-}
-
-/// Never used to sleep: the tests call `cycle(now)` themselves, and, like the simulated clock,
-/// do not advance time while the executive's worker holds it.
-#[derive(Default)]
-struct ManualClock {
-    holds: std::sync::atomic::AtomicU32,
-}
-impl Clock for ManualClock {
-    fn now(&self) -> Duration {
-        Duration::ZERO
-    }
-    fn sleep_until(&self, _deadline: Duration) {}
-    fn begin_hold(&self) {
-        self.holds.fetch_add(1, Ordering::AcqRel);
-    }
-    fn end_hold(&self) {
-        self.holds.fetch_sub(1, Ordering::AcqRel);
-    }
-    fn is_simulated(&self) -> bool {
-        true
-    }
 }
 
 /// An arm whose every skill takes `cycles` cycles; closing grips an object.
@@ -330,7 +308,7 @@ impl Harness {
                 .unwrap();
         }
         // Time stands still while the executive's worker holds the clock.
-        while self.clock.holds.load(Ordering::Acquire) > 0 {
+        while self.clock.holds() > 0 {
             std::thread::yield_now();
         }
         test_support::count_this_thread(count);

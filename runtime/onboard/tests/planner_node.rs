@@ -6,8 +6,7 @@
 )]
 #![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failure panics with its message
 
-use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, AtomicU32, AtomicU64, Ordering};
+use std::sync::atomic::{AtomicU32, Ordering};
 use std::time::Duration;
 
 use grop_ipc::{
@@ -478,31 +477,6 @@ fn failed_unload_is_answered_with_the_grop_plus_retry() {
     panic!("the retry budget was never spent");
 }
 
-/// A simulated clock for the loop: `sleep_until` jumps to the deadline, and the test's stop
-/// flag is set when `end` is reached.
-struct JumpClock {
-    now_ns: AtomicU64,
-    end: Duration,
-    stop: Arc<AtomicBool>,
-}
-
-impl grop_clock::Clock for JumpClock {
-    fn now(&self) -> Duration {
-        Duration::from_nanos(self.now_ns.load(Ordering::SeqCst))
-    }
-    fn sleep_until(&self, deadline: Duration) {
-        let ns = deadline.as_nanos() as u64;
-        self.now_ns.fetch_max(ns, Ordering::SeqCst);
-        if deadline >= self.end {
-            self.stop.store(true, Ordering::SeqCst);
-        }
-    }
-    fn is_simulated(&self) -> bool {
-        // Time moves only by sleep_until: the node must run on its ticks, not wait for events.
-        true
-    }
-}
-
 /// The loop on a simulated clock: one heartbeat per 100 ms of clock time, role Planner.
 #[test]
 fn heartbeats_every_100_ms_of_clock_time() {
@@ -518,12 +492,9 @@ fn heartbeats_every_100_ms_of_clock_time() {
     )
     .unwrap();
     let p = peers(&ns);
-    let stop = Arc::new(AtomicBool::new(false));
-    let clock = JumpClock {
-        now_ns: AtomicU64::new(5_000_000_000),
-        end: Duration::from_millis(5_995),
-        stop: stop.clone(),
-    };
+    // Time moves only by the loop's sleeps; the flag stops the loop at 5.995 s.
+    let (clock, stop) = grop_clock::ManualClock::until(Duration::from_millis(5_995));
+    clock.set(Duration::from_secs(5));
     node.run(&clock, &stop).unwrap();
     let mut beats = Vec::new();
     while let Some(b) = p.health.try_recv().unwrap() {
