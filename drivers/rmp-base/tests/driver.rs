@@ -240,6 +240,18 @@ fn start_up_writes_every_feedback_bitmap_then_commands_motion() {
     assert_eq!(rig.driver.status().state, Some(OperationalState::Standby));
 }
 
+/// The driver wrote none of the base's stored limits.
+fn assert_no_limit_written(rig: &Rig) {
+    assert!(
+        !rig.base
+            .configs
+            .iter()
+            .any(|c| matches!(c, ConfigCommand::SetFloat(..))),
+        "{:?}",
+        rig.base.configs
+    );
+}
+
 #[test]
 fn a_base_that_holds_the_limits_already_gets_no_write() {
     let mut rig = Rig::new(RmpBaseConfig::default());
@@ -249,14 +261,7 @@ fn a_base_that_holds_the_limits_already_gets_no_write() {
     for _ in 0..20 {
         rig.tick().unwrap();
     }
-    assert!(
-        !rig.base
-            .configs
-            .iter()
-            .any(|c| matches!(c, ConfigCommand::SetFloat(..))),
-        "{:?}",
-        rig.base.configs
-    );
+    assert_no_limit_written(&rig);
     let verified = rig.driver.verified_limits().expect("limits verified");
     assert_eq!((verified.velocity_mps, verified.yaw_rate_radps), (0.5, 1.0));
 }
@@ -270,14 +275,7 @@ fn a_replay_of_an_older_driver_adopts_the_stored_limits_and_writes_none() {
     for _ in 0..20 {
         rig.tick().unwrap();
     }
-    assert!(
-        !rig.base
-            .configs
-            .iter()
-            .any(|c| matches!(c, ConfigCommand::SetFloat(..))),
-        "{:?}",
-        rig.base.configs
-    );
+    assert_no_limit_written(&rig);
     // The factory limits, as the base holds them.
     let verified = rig.driver.verified_limits().expect("limits adopted");
     assert_eq!(

@@ -510,6 +510,28 @@ fn heartbeats_every_100_ms_of_clock_time() {
     assert_eq!(node.overruns(), 0);
 }
 
+/// Asks for a mission-start plan (request 1) and checks that five 10 ms steps give none.
+fn ask_and_expect_no_plan(
+    node: &mut PlannerNode,
+    p: &Peers,
+    scene: &Scene,
+    now: &mut Duration,
+    why: &str,
+) {
+    p.requests
+        .publish(&request(
+            1,
+            ReplanReason::MissionStart,
+            start_pose(scene),
+            0,
+        ))
+        .unwrap();
+    for _ in 0..5 {
+        *now += Duration::from_millis(10);
+        assert_eq!(node.step(*now).unwrap(), None, "{why}");
+    }
+}
+
 /// A node on `scene` with Psi, the default robot and settings, as most tests want it.
 fn default_node(ns: &str, scene: &Scene) -> PlannerNode {
     PlannerNode::new(
@@ -627,22 +649,13 @@ fn a_frozen_camera_frame_is_not_planned_from() {
     // Frame 1, stamped at 0; the camera then freezes.
     publish_frame(&p.camera, &scene, 1);
     let mut now = grop_onboard::planner_node::MAX_FRAME_AGE + Duration::from_secs(7);
-    p.requests
-        .publish(&request(
-            1,
-            ReplanReason::MissionStart,
-            start_pose(&scene),
-            0,
-        ))
-        .unwrap();
-    for _ in 0..5 {
-        now += Duration::from_millis(10);
-        assert_eq!(
-            node.step(now).unwrap(),
-            None,
-            "planned from a 10 s old frame"
-        );
-    }
+    ask_and_expect_no_plan(
+        &mut node,
+        &p,
+        &scene,
+        &mut now,
+        "planned from a 10 s old frame",
+    );
     let (failures, last) = node.failures();
     assert_eq!(failures, 1, "reported once");
     assert!(last.unwrap().contains("s old"), "{last:?}");
@@ -666,22 +679,13 @@ fn a_camera_frame_stamped_in_the_future_is_refused_and_a_frame_goes_stale_from_i
     // Stamped 1 h ahead: before, its age read 0 s for an hour, so a camera frozen on it
     // would be planned from all that time.
     publish_frame_at(&p.camera, &scene, 1, now + Duration::from_secs(3600));
-    p.requests
-        .publish(&request(
-            1,
-            ReplanReason::MissionStart,
-            start_pose(&scene),
-            0,
-        ))
-        .unwrap();
-    for _ in 0..5 {
-        now += Duration::from_millis(10);
-        assert_eq!(
-            node.step(now).unwrap(),
-            None,
-            "planned from a frame stamped in the future"
-        );
-    }
+    ask_and_expect_no_plan(
+        &mut node,
+        &p,
+        &scene,
+        &mut now,
+        "planned from a frame stamped in the future",
+    );
     assert_eq!(node.frames_refused(), 1);
     let (_, last) = node.failures();
     assert!(last.unwrap().contains("in the future"), "{last:?}");
