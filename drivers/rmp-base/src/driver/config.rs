@@ -88,7 +88,7 @@ impl BaseMode {
 pub struct RmpBaseConfig {
     /// Configuration-command numbering of the base's firmware.
     pub profile: FirmwareProfile,
-    /// Period at which the caller calls [`RmpBase::tick`]; the limiter assumes it when the
+    /// Period at which the caller calls [`crate::RmpBase::tick`]; the limiter assumes it when the
     /// measured period is implausible. 20 ms (50 Hz, the design's base rate).
     pub command_period: Duration,
     /// Velocity targets older than this are stale and the base is ramped to zero. 100 ms.
@@ -118,7 +118,7 @@ pub struct RmpBaseConfig {
     pub fallback_velocity_limit_mps: f32,
     /// A measured speed (feedback item `LinearVelocity`) more than this above the speed
     /// commanded (an envelope that falls no faster than `limits.max_decel_mps2`, so the base
-    /// may lag a slowing command) stops and disarms the driver: [`BaseError::Overspeed`].
+    /// may lag a slowing command) stops and disarms the driver: [`crate::BaseError::Overspeed`].
     /// 0.15 m/s.
     pub overspeed_tolerance_mps: f32,
     /// The same for the measured yaw rate (`DifferentialWheelVelocity`), against an envelope
@@ -128,7 +128,7 @@ pub struct RmpBaseConfig {
     pub fallback_yaw_rate_limit_radps: f32,
     /// Track width for heading from wheel positions until the base reports its own, m.
     pub fallback_track_width_m: f64,
-    /// Deceleration of a safety stop ([`RmpBase::safety_stop`]), m/s^2: at least
+    /// Deceleration of a safety stop ([`crate::RmpBase::safety_stop`]), m/s^2: at least
     /// `limits.max_decel_mps2`, at most the base's highest settable deceleration (7.848). Also
     /// written into the base's stored deceleration limits, so that the base itself may follow
     /// the ramp and slews to zero at this rate when our commands stop. Default: the factory

@@ -71,7 +71,7 @@ pub enum BaseError {
         faults: FaultStatus,
     },
     /// The base moved faster than commanded (beyond the configured tolerance): the driver
-    /// commands zero and stays disarmed until [`RmpBase::rearm`]. Re-reported every tick
+    /// commands zero and stays disarmed until [`crate::RmpBase::rearm`]. Re-reported every tick
     /// until then.
     #[error(
         "RMP base faster than commanded: {measured_mps} m/s (allowed {allowed_mps}), {measured_yaw_radps} rad/s (allowed {allowed_yaw_radps}); stopped until re-armed"
@@ -88,7 +88,7 @@ pub enum BaseError {
     },
     /// Another host sends motion (0x500) or configuration (0x501) commands on the bus: the
     /// base obeys whichever command came last, so nobody is in control. The driver commands
-    /// zero and stays disarmed until [`RmpBase::rearm`]; re-reported every tick until then.
+    /// zero and stays disarmed until [`crate::RmpBase::rearm`]; re-reported every tick until then.
     /// (A host never receives its own frames: SocketCAN does not loop them back to the
     /// sending socket, nor does the virtual bus.)
     #[error(
@@ -118,7 +118,7 @@ pub enum BaseError {
     },
     /// After the limits were verified the base reported a different speed or yaw-rate limit:
     /// its normalised commands would now mean other speeds. The driver commands zero and stays
-    /// disarmed until [`RmpBase::rearm`] (and disarms again while the report differs).
+    /// disarmed until [`crate::RmpBase::rearm`] (and disarms again while the report differs).
     #[error(
         "RMP base reports its {setting:?} as {reported}, verified at start-up as {verified}; stopped until re-armed"
     )]
@@ -143,7 +143,7 @@ fn read_back(read: &Option<f32>) -> String {
 }
 
 /// Why the driver disarmed itself. Disarmed, it commands zero velocity whatever the input,
-/// until [`RmpBase::rearm`] is called, even after the cause has cleared.
+/// until [`crate::RmpBase::rearm`] is called, even after the cause has cleared.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[non_exhaustive]
 pub enum DisarmCause {
@@ -154,7 +154,7 @@ pub enum DisarmCause {
         /// Fault status words 1..4 when it was seen.
         faults: FaultStatus,
     },
-    /// The base moved faster than commanded ([`BaseError::Overspeed`]).
+    /// The base moved faster than commanded ([`crate::BaseError::Overspeed`]).
     Overspeed {
         /// Measured speed, m/s.
         measured_mps: f32,
@@ -166,9 +166,9 @@ pub enum DisarmCause {
         allowed_yaw_radps: f32,
     },
     /// Another host sends motion or configuration commands on the bus
-    /// ([`BaseError::SecondCommander`]).
+    /// ([`crate::BaseError::SecondCommander`]).
     SecondCommander,
-    /// The base did not keep a limit written at start-up ([`BaseError::LimitNotTaken`]).
+    /// The base did not keep a limit written at start-up ([`crate::BaseError::LimitNotTaken`]).
     LimitNotTaken {
         /// The stored setting.
         setting: NvmFloat,
@@ -177,7 +177,7 @@ pub enum DisarmCause {
         /// The value read back, if any.
         read: Option<f32>,
     },
-    /// The base reported a limit other than the one verified ([`BaseError::LimitChanged`]).
+    /// The base reported a limit other than the one verified ([`crate::BaseError::LimitChanged`]).
     LimitChanged {
         /// The stored setting.
         setting: NvmFloat,
