@@ -11,7 +11,7 @@ use motion_control::{Pose2, Twist};
 use super::cycle::{CycleInputs, CycleOutputs};
 use super::mission::{MissionCore, Phase};
 use super::worker::{Answer, Job, PathFailure};
-use super::{AbortReason, MissionState};
+use super::AbortReason;
 use crate::localisation::{PlanarPose, wrap};
 
 /// Legs that may fail in a row before the mission is given up.
@@ -398,16 +398,10 @@ impl MissionCore {
         );
         self.failed_legs += 1;
         if self.failed_legs > MAX_FAILED_LEGS {
-            // The base cannot get anywhere from here: stop rather than ask forever.
-            self.event(
-                EventKind::MissionAborted,
-                now,
-                format_args!("{MAX_FAILED_LEGS} legs in a row failed: the base is stuck"),
-                outputs,
-            );
-            self.state = MissionState::Aborted(AbortReason::Stuck);
-            outputs.abort = Some(AbortReason::Stuck);
-            self.velocity = Twist::ZERO;
+            // The base cannot get anywhere from here: stop rather than ask forever. A safety
+            // stop like every abort (the base ramps at the emergency deceleration, the arm is
+            // stopped), reported as `Stuck`.
+            self.abort(AbortReason::Stuck, now, outputs);
             return None;
         }
         // The unload that needed this leg cannot happen from here: let the planner decide.

@@ -465,6 +465,47 @@ fn shutdown_and_a_lost_clock_abort() {
 }
 
 #[test]
+fn legs_that_keep_failing_end_the_mission_stuck_through_the_one_abort() {
+    let mut b = Bench::new();
+    let mut job = b.running_with(&[TaskStep::navigate(3.0, 1.0, 0.0, 6.0)]);
+    let mut failed = 0;
+    while b.core.state() == MissionState::Running {
+        let Some(Job::Path { id, .. }) = job else {
+            panic!("expected a path job, got {job:?} after {failed} failed legs");
+        };
+        let answer = Answer::Path(id, Err(crate::executive::worker::PathFailure::NoRoute));
+        b.step(|i| i.answer = Some(&answer));
+        failed += 1;
+        if b.core.state() != MissionState::Running {
+            break;
+        }
+        // The planner answers the new request with the same leg.
+        let request = b.out.request.expect("a new plan is asked for").request_id;
+        let again = plan(request, &[TaskStep::navigate(3.0, 1.0, 0.0, 6.0)]);
+        b.step(|i| i.plans = std::slice::from_ref(&again));
+        job = b.out.job;
+        assert!(failed < 10, "never stuck");
+    }
+    assert_eq!(b.core.state(), MissionState::Aborted(AbortReason::Stuck));
+    assert_eq!(
+        failed, 4,
+        "three failed legs are allowed, the fourth ends it"
+    );
+    // Through `abort`: a safety stop of the base, the arm stopped, zero, the reason reported.
+    assert!(b.out.safety_stop, "the base's safety stop");
+    assert_eq!(b.out.arm, ArmCommand::Stop);
+    assert_eq!(b.out.abort, Some(AbortReason::Stuck));
+    assert_eq!(b.out.velocity, Twist::ZERO);
+    assert!(
+        b.events
+            .iter()
+            .any(|(k, d)| *k == EventKind::MissionAborted && d.starts_with("Stuck")),
+        "{:?}",
+        b.events
+    );
+}
+
+#[test]
 fn a_failed_path_fails_the_leg_and_asks_for_a_new_plan() {
     let mut b = Bench::new();
     let job = b
