@@ -8,10 +8,10 @@ use grop_ipc::{EventKind, ReplanReason, TaskStep, TaskStepKind};
 use motion_control::follower::FollowStep;
 use motion_control::{Pose2, Twist};
 
+use super::AbortReason;
 use super::cycle::{CycleInputs, CycleOutputs};
 use super::mission::{MissionCore, Phase};
 use super::worker::{Answer, Job, PathFailure};
-use super::AbortReason;
 use crate::localisation::{PlanarPose, wrap};
 
 /// Legs that may fail in a row before the mission is given up.
