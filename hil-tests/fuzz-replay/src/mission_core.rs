@@ -26,7 +26,9 @@ use grop_onboard::executive::scan_match::Alignment;
 use grop_onboard::executive::unload::{
     ArmFault, PlaceJoints, SkillStatus, TrayGeometry, UnloadFailure, UnloadPlan, solve_tray,
 };
-use grop_onboard::executive::worker::{Answer, FollowerPath, Job, MAX_PATH_POINTS, PathFailure};
+use grop_onboard::executive::worker::{
+    Answer, FollowerPath, Job, MAX_PATH_POINTS, PathFailure, SeenPoints,
+};
 use grop_onboard::executive::{
     ArmCommand, ArmSnapshot, BaseReading, CycleInputs, CycleOutputs, ExecutiveConfig, MissionCore,
 };
@@ -229,7 +231,7 @@ fn plan(b: &mut Bytes<'_>, request_id: u64, task_mask: u64) -> TaskPlanMsg {
 fn answer(b: Option<&mut Bytes<'_>>, job: &Job) -> Option<Answer> {
     let Some(b) = b else {
         return Some(match *job {
-            Job::Path { id, from, to } => {
+            Job::Path { id, from, to, .. } => {
                 let mut path = FollowerPath::new();
                 let _ = path.push([from.0 as f32, from.1 as f32]);
                 let _ = path.push([to.0 as f32, to.1 as f32]);
@@ -286,16 +288,21 @@ fn answer(b: Option<&mut Bytes<'_>>, job: &Job) -> Option<Answer> {
                 k => UnloadFailure::Arm(arm_fault(k)),
             }),
         ),
-        _ => Answer::Align(
-            id,
-            Alignment {
-                pose: pose(b),
-                pairs: usize::from(b.u16()),
-                rms_m: num(b),
-                correction_m: num(b),
-            },
-            pose(b),
-        ),
+        _ => {
+            let (pose_taken, pairs) = (pose(b), usize::from(b.u16()));
+            Answer::Align(
+                id,
+                Alignment {
+                    pose: pose_taken,
+                    pairs,
+                    // As many points as pairs: no extra input bytes (the corpus keeps its meaning).
+                    points: pairs,
+                    rms_m: num(b),
+                    correction_m: num(b),
+                },
+                pose(b),
+            )
+        }
     })
 }
 
@@ -508,7 +515,9 @@ fn run(data: &[u8]) -> Summary {
                 let any = Job::Path {
                     id: 0,
                     from: (0.0, 0.0),
+                    from_yaw: 0.0,
                     to: (0.0, 0.0),
+                    seen: SeenPoints::NONE,
                 };
                 answer(Some(&mut b), &any)
             }

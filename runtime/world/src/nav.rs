@@ -18,6 +18,7 @@ use crate::geometry::OrientedRect;
 use crate::robot::RobotConfig;
 use crate::scene::Scene;
 
+pub mod lattice;
 mod visibility;
 use visibility::{CornerGraph, SightTable};
 pub use visibility::{MAX_GRAPH_CORNERS, NavEndpoint, SightStats};

@@ -11,7 +11,7 @@ use motion_control::{Pose2, Twist};
 use super::AbortReason;
 use super::cycle::{CycleInputs, CycleOutputs};
 use super::mission::{MissionCore, Phase};
-use super::worker::{Answer, Job, PathFailure};
+use super::worker::{Answer, Job, PathFailure, SeenPoints};
 use crate::localisation::{PlanarPose, wrap};
 
 /// Legs that may fail in a row before the mission is given up.
@@ -261,7 +261,10 @@ impl MissionCore {
         outputs.job = Some(Job::Path {
             id,
             from: (pose.x_m, pose.y_m),
+            from_yaw: pose.yaw_rad,
             to,
+            // The shell adds what the range sensor sees.
+            seen: SeenPoints::NONE,
         });
         Some(Phase::PathRequested { id, since: now })
     }

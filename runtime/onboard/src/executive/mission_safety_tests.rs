@@ -81,7 +81,7 @@ fn a_safeguard_stop_pauses_until_it_clears_and_the_operator_enables() {
         b.step(|i| i.arm = arm_in(1, 7));
         job = b.out.job;
     }
-    let Some(Job::Path { id, from, to }) = job else {
+    let Some(Job::Path { id, from, to, .. }) = job else {
         panic!("the leg asks for a new path after the enable: {job:?}");
     };
     let answer = Answer::Path(id, Ok(straight_path(from, to)));

@@ -203,7 +203,7 @@ fn driving() -> Bench {
     let job = b
         .running_with(&[TaskStep::navigate(3.0, 1.0, 0.0, 6.0)])
         .expect("a path job");
-    let Job::Path { id, from, to } = job else {
+    let Job::Path { id, from, to, .. } = job else {
         panic!("expected a path job, got {job:?}");
     };
     let answer = Answer::Path(id, Ok(straight_path(from, to)));

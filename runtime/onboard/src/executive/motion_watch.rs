@@ -178,12 +178,19 @@ impl MissionCore {
             {
                 // Counted again from now: the new leg gets its own time.
                 self.monitor_hold_since = Some(now);
-                let what = if self.docking() {
+                let docking = self.docking();
+                let what = if docking {
                     "the standing spot is taken (the scan sees something there)"
                 } else {
                     "blocked by an obstacle the scan sees"
                 };
                 self.phase = self.leg_failed(&step, now, what, outputs);
+                // Held in front of something: the next leg backs away from it first (as from a
+                // table), so that its path, planned round what the scan sees, starts where the
+                // base can turn.
+                if !docking && self.phase.is_none() {
+                    self.at_table = true;
+                }
             }
         }
     }

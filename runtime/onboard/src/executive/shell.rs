@@ -666,7 +666,21 @@ impl<D: BaseDevice, A: ArmDevice> Executive<D, A> {
     }
 
     /// Hands a job to the worker; one it cannot take is answered as failed for the next update.
-    fn submit(&mut self, job: Job) {
+    /// A path job gets what the range sensor sees now, in the world frame at the estimate.
+    fn submit(&mut self, mut job: Job) {
+        if let Job::Path { seen, .. } = &mut job
+            && let Some(obstacles) = self.guard.as_ref().and_then(|g| g.monitor.obstacles())
+        {
+            let e = self.core.estimate();
+            let (s, c) = e.yaw_rad.sin_cos();
+            for [px, py] in obstacles.iter() {
+                let (bx, by) = (f64::from(px), f64::from(py));
+                let _ = seen.push(
+                    (e.x_m + c * bx - s * by) as f32,
+                    (e.y_m + s * bx + c * by) as f32,
+                );
+            }
+        }
         match self.worker.submit(job) {
             Ok(true) => {}
             refused => {
