@@ -72,6 +72,10 @@ pub struct CycleInputs<'a> {
     )>,
     /// The operator's enable (the safety work makes start-up wait for it).
     pub operator_enable: bool,
+    /// What the range sensor sees now: the collision monitor's points (base frame, moved with
+    /// the odometry since the revolution), `None` without a sensor. The core checks a docking
+    /// line against it before driving in.
+    pub scan: Option<&'a motion_control::collision::Obstacles>,
 }
 
 impl<'a> CycleInputs<'a> {
@@ -95,6 +99,7 @@ impl<'a> CycleInputs<'a> {
             sent: Twist::ZERO,
             aligned: None,
             operator_enable: true,
+            scan: None,
         }
     }
 }

@@ -154,17 +154,27 @@ impl MissionCore {
             Some(Phase::Settling { until }) if now < until => Some(Phase::Settling { until }),
             Some(Phase::Settling { .. }) => match self.dock.take() {
                 Some(goal) => {
-                    // At the pre-goal, facing the table: drive straight in to the goal.
-                    match self.follower.set_line(
-                        [pose.x_m as f32, pose.y_m as f32],
-                        [goal[0] as f32, goal[1] as f32],
-                    ) {
+                    // At the pre-goal, facing the table: what the sensor sees now decides
+                    // whether (and where, within a few centimetres) to drive straight in.
+                    let Some((gx, gy)) = self.docking_goal_in_the_scan(pose, goal, inputs, outputs)
+                    else {
+                        return self.leg_failed(
+                            step,
+                            now,
+                            "the standing spot is taken (the scan sees something on the way in)",
+                            outputs,
+                        );
+                    };
+                    match self
+                        .follower
+                        .set_line([pose.x_m as f32, pose.y_m as f32], [gx as f32, gy as f32])
+                    {
                         Ok(()) => {
                             // The stretch was checked free with the docking shape's margin:
                             // the monitor uses that shape on all of it (and on at least the
                             // last DOCKING_SHAPE_RANGE_M).
                             let range = (goal[3] + 0.05).max(DOCKING_SHAPE_RANGE_M);
-                            self.dock_goal = Some([goal[0], goal[1], range]);
+                            self.dock_goal = Some([gx, gy, range]);
                             Some(Phase::Following {
                                 deadline: self.leg_deadline(step, pose, now),
                             })
@@ -371,6 +381,62 @@ impl MissionCore {
             .or_else(|| lines.first().copied())
     }
 
+    /// Where to drive in from `pose` (the pre-goal) for the docking `goal` ([x, y, yaw, d]):
+    /// the goal, or the nearest of [`DOCK_SHIFTS_M`] along the table, whose straight line in
+    /// the range sensor sees clear (the footprint with the docking shape's margin, facing along
+    /// the line, every 5 cm) and, for a moved goal, the map too. A moved goal is reported. `None`
+    /// when the scan shows every one of them blocked (a chair pushed into the standing spot):
+    /// the leg fails before the base drives in. Without a sensor, the goal as planned.
+    fn docking_goal_in_the_scan(
+        &mut self,
+        pose: PlanarPose,
+        goal: [f64; 4],
+        inputs: &CycleInputs<'_>,
+        outputs: &mut CycleOutputs,
+    ) -> Option<(f64, f64)> {
+        let Some(scan) = inputs.scan else {
+            return Some((goal[0], goal[1]));
+        };
+        let (s, c) = goal[2].sin_cos();
+        let chosen = DOCK_SHIFTS_M.iter().copied().find_map(|shift| {
+            let (gx, gy) = (goal[0] - s * shift, goal[1] + c * shift);
+            let map_clear = shift == 0.0 || self.segment_free((pose.x_m, pose.y_m), (gx, gy));
+            (map_clear && scan_line_clear(pose, (gx, gy), scan, &self.config.robot))
+                .then_some((shift, gx, gy))
+        })?;
+        let (shift, gx, gy) = chosen;
+        if shift != 0.0 {
+            self.event(
+                EventKind::Obstacle,
+                inputs.now,
+                format_args!(
+                    "standing spot moved {:+.0} cm along the table to ({gx:.3}, {gy:.3}): the scan sees something on the way in",
+                    shift * 100.0
+                ),
+                outputs,
+            );
+        }
+        Some((gx, gy))
+    }
+
+    /// Whether the footprint (with the docking line's margin) is free on the map all along the
+    /// straight line from `a` to `b`, facing along it, every 5 cm.
+    fn segment_free(&self, a: (f64, f64), b: (f64, f64)) -> bool {
+        let (dx, dy) = (b.0 - a.0, b.1 - a.1);
+        let d = dx.hypot(dy);
+        let yaw = dy.atan2(dx);
+        (0..=((d / 0.05).ceil() as usize)).all(|k| {
+            self.footprint_free(
+                b.0,
+                b.1,
+                yaw,
+                (k as f64 * 0.05).min(d),
+                yaw,
+                &self.line_robot,
+            )
+        })
+    }
+
     /// When a leg must have ended: the factor times its planned (or straight-line) travel time,
     /// plus the slack; a travel cost no duration can hold counts as the straight line's.
     fn leg_deadline(&self, step: &TaskStep, pose: PlanarPose, now: Duration) -> Duration {
@@ -418,4 +484,39 @@ impl MissionCore {
         self.request_plan(ReplanReason::LegFailed, now, None, outputs);
         None
     }
+}
+
+/// Whether the range sensor's points (`scan`, base frame at `pose`) leave the straight line from
+/// `pose` to `goal` clear: the footprint grown by [`DOCKING_LINE_MARGIN_M`], facing along the
+/// line, every 5 cm. Allocation free.
+fn scan_line_clear(
+    pose: PlanarPose,
+    goal: (f64, f64),
+    scan: &motion_control::collision::Obstacles,
+    robot: &world::RobotConfig,
+) -> bool {
+    let (s, c) = pose.yaw_rad.sin_cos();
+    let (wx, wy) = (goal.0 - pose.x_m, goal.1 - pose.y_m);
+    // The goal in the base frame; the line runs from the origin to it.
+    let (gx, gy) = (c * wx + s * wy, -s * wx + c * wy);
+    let d = gx.hypot(gy);
+    let yaw = gy.atan2(gx);
+    let length = robot.footprint.length_m + 2.0 * DOCKING_LINE_MARGIN_M;
+    let width = robot.footprint.width_m + 2.0 * DOCKING_LINE_MARGIN_M;
+    let reach = d + length.hypot(width);
+    let steps = (d / 0.05).ceil() as usize;
+    scan.iter()
+        .map(|p| (f64::from(p[0]), f64::from(p[1])))
+        .filter(|(x, y)| x.hypot(*y) <= reach)
+        .all(|(x, y)| {
+            (0..=steps).all(|k| {
+                let t = if steps == 0 {
+                    1.0
+                } else {
+                    k as f64 / steps as f64
+                };
+                !world::geometry::OrientedRect::new(t * gx, t * gy, length, width, yaw)
+                    .contains_point(x, y)
+            })
+        })
 }

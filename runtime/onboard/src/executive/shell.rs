@@ -443,6 +443,7 @@ impl<D: BaseDevice, A: ArmDevice> Executive<D, A> {
             sent: self.last_verdict.twist,
             aligned: self.aligned.take(),
             operator_enable: self.operator_enable,
+            scan: self.guard.as_ref().and_then(|g| g.monitor.obstacles()),
         };
         self.outputs.clear();
         self.core.update(&inputs, &mut self.outputs);
