@@ -34,6 +34,8 @@ pub const RELEASED: Rgb<u8> = Rgb([250, 200, 0]);
 /// A contact with furniture.
 pub const CONTACT: Rgb<u8> = Rgb([255, 0, 255]);
 
+/// Where the collision monitor held the base (a hold the executive reported, or a leg it failed).
+pub const HELD: Rgb<u8> = Rgb([0, 170, 190]);
 const PANEL_BG: Rgb<u8> = Rgb([255, 255, 255]);
 
 /// The text scale for a map of this width (the font is 5 x 9 pixels at scale 1).
@@ -603,6 +605,17 @@ pub fn mission(
     for c in &report.collisions {
         cross(&mut img, &room, (c.base[0], c.base[1]), 0.12, CONTACT);
     }
+    // The collision monitor's interventions: where the base was when the executive reported a
+    // hold, or gave up a leg or a standing spot because of what the scan saw.
+    let held: Vec<(f64, f64)> = report
+        .events
+        .iter()
+        .filter(|e| is_intervention(&e.detail))
+        .map(|e| base_at(e.t_s))
+        .collect();
+    for xy in &held {
+        ring(&mut img, &room, *xy, 0.1, 1.5 * s, HELD);
+    }
     let table_y = 0.5 * (scene.banquet_table.y_min_m() + scene.banquet_table.y_max_m());
     for (xy, _) in &spots {
         labels.keep_clear(&room, *xy, 0.2);
@@ -670,9 +683,25 @@ pub fn mission(
             "contact with furniture (base there)",
         );
     }
+    if !held.is_empty() {
+        legend.entry(
+            Swatch::Ring(HELD),
+            format!("range sensor: base held / spot taken ({})", held.len()),
+        );
+    }
     legend.room();
     legend.entries.extend(stories);
     with_legend(&img, &legend)
+}
+
+/// Whether an executive event reports an intervention of the range sensor: the collision
+/// monitor holding the base, a leg failed because of what the scan sees, a standing spot taken
+/// or moved.
+fn is_intervention(detail: &str) -> bool {
+    detail.starts_with("collision monitor: base held")
+        || detail.contains("obstacle the scan sees")
+        || detail.contains("the standing spot is taken")
+        || detail.starts_with("standing spot moved")
 }
 
 #[cfg(test)]
@@ -733,8 +762,35 @@ mod tests {
         ] {
             assert!(count(&img, c) > 20, "no {what}");
         }
-        // No replan, so no replanned route.
+        // No replan, so no replanned route; no hold of the collision monitor.
         assert_eq!(count(&img, REPLANNED), 0);
+        assert_eq!(count(&img, HELD), 0);
+    }
+
+    #[test]
+    fn the_collision_monitor_s_holds_are_drawn_where_the_base_was() {
+        let scene = world::generate::evaluation_scene(1, 20, 3);
+        let robot = RobotConfig::default();
+        let mut r = report(&scene);
+        r.events = serde_json::from_value(serde_json::json!([
+            {"t_s": 2.5, "kind": "Obstacle", "plan_id": 1, "step": 0,
+             "detail": "collision monitor: base held (an obstacle ahead)"},
+            {"t_s": 3.5, "kind": "LegFinished", "plan_id": 1, "step": 0,
+             "detail": "leg to (1.00, 2.00) failed: blocked by an obstacle the scan sees"},
+            {"t_s": 3.6, "kind": "Obstacle", "plan_id": 1, "step": 0,
+             "detail": "collision monitor: clear again after 1.1 s"}
+        ]))
+        .unwrap();
+        let img = mission(&scene, &robot, &r, 48.0, vec!["title".into()]);
+        // Two rings where the base stood at 2.5 s and 3.5 s (the same place), and the legend's
+        // swatch: a "clear again" is not an intervention.
+        assert!(count(&img, HELD) > 20, "no hold drawn");
+        assert!(is_intervention(
+            "the standing spot is taken (the scan sees something on the way in)"
+        ));
+        assert!(!is_intervention(
+            "collision monitor: clear again after 1.1 s"
+        ));
     }
 
     #[test]
