@@ -265,16 +265,7 @@ mod tests {
 
     /// A level ring of points from the ray scene at the true pose, in the base frame.
     fn scan_at(scene: &Scene, truth: PlanarPose) -> Vec<[f32; 2]> {
-        let rays = RayScene::from_scene(scene);
-        (0..720)
-            .filter_map(|k| {
-                let a = truth.yaw_rad + f64::from(k) * std::f64::consts::TAU / 720.0;
-                let dir = [a.cos(), a.sin(), 0.0];
-                let (r, _) = rays.cast([truth.x_m, truth.y_m, 0.4], dir, 30.0)?;
-                let b = f64::from(k) * std::f64::consts::TAU / 720.0;
-                Some([(r * b.cos()) as f32, (r * b.sin()) as f32])
-            })
-            .collect()
+        scan_with_rings(scene, truth, &[0.0])
     }
 
     #[test]
@@ -312,14 +303,22 @@ mod tests {
     /// What the executive's sensor keeps: the VLP-16's 16 rings from 0.4 m up, returns between
     /// 5 cm and the body's 1 m, the nearest per 0.5 degree bearing, in the base frame.
     fn ring_scan_at(scene: &Scene, truth: PlanarPose) -> Vec<[f32; 2]> {
+        let rings: Vec<f64> = (0..16).map(|ring| f64::from(2 * ring - 15)).collect();
+        scan_with_rings(scene, truth, &rings)
+    }
+
+    /// The nearest return per 0.5 degree bearing of lasers at `elevations_deg` from 0.4 m up,
+    /// kept between 5 cm and 1 m above the floor, in the base frame.
+    fn scan_with_rings(scene: &Scene, truth: PlanarPose, elevations_deg: &[f64]) -> Vec<[f32; 2]> {
         let rays = RayScene::from_scene(scene);
         (0..720)
             .filter_map(|k| {
                 let b = f64::from(k) * std::f64::consts::TAU / 720.0;
                 let a = truth.yaw_rad + b;
-                let nearest = (0..16)
-                    .filter_map(|ring| {
-                        let e = f64::from(2 * ring - 15).to_radians();
+                let nearest = elevations_deg
+                    .iter()
+                    .filter_map(|deg| {
+                        let e = deg.to_radians();
                         let dir = [a.cos() * e.cos(), a.sin() * e.cos(), e.sin()];
                         let (r, _) = rays.cast([truth.x_m, truth.y_m, 0.4], dir, 30.0)?;
                         (0.05..=1.0)

@@ -18,10 +18,9 @@
 //! Near the path's two ends the footprint is checked without the margin: the base stands where
 //! it stands, and a goal next to furniture was chosen by its own checks.
 
-use std::cmp::Ordering;
 use std::collections::BinaryHeap;
 
-use super::{NAV_CELL_M, NavPath};
+use super::{NAV_CELL_M, NavPath, OpenEntry};
 use crate::geometry::OrientedRect;
 use crate::robot::RobotConfig;
 use crate::scene::{Room, Scene};
@@ -520,7 +519,7 @@ impl Lattice {
         let states = g.cols * g.rows * DIRECTIONS;
         let index = |c: usize, r: usize, d: usize| (r * g.cols + c) * DIRECTIONS + d;
         let mut cost = vec![f64::INFINITY; states];
-        let mut parent = vec![u32::MAX; states];
+        let mut parent = vec![usize::MAX; states];
         let mut heap = BinaryHeap::new();
         let h = |c: usize, r: usize| {
             let (x, y) = g.center(c, r);
@@ -528,14 +527,14 @@ impl Lattice {
         };
         let start = index(sc, sr, d0);
         cost[start] = 0.0;
-        heap.push(Open {
+        heap.push(OpenEntry {
             f: h(sc, sr),
-            state: start as u32,
+            g: 0.0,
+            index: start,
         });
         let mut expansions = 0usize;
         let mut reached = None;
-        while let Some(Open { state, .. }) = heap.pop() {
-            let s = state as usize;
+        while let Some(OpenEntry { index: s, .. }) = heap.pop() {
             let d = s % DIRECTIONS;
             let cell = s / DIRECTIONS;
             let (c, r) = (cell % g.cols, cell / g.cols);
@@ -562,16 +561,16 @@ impl Lattice {
                 let turn =
                     crate::geometry::wrap_angle_rad(direction_heading(nd) - direction_heading(d))
                         .abs();
-                let next = index(c, r, nd);
                 let cand = cost[s] + turn / self.yaw_rate_radps + TURN_PENALTY_S;
-                if cand < cost[next] {
-                    cost[next] = cand;
-                    parent[next] = state;
-                    heap.push(Open {
-                        f: cand + h(c, r),
-                        state: next as u32,
-                    });
-                }
+                relax(
+                    &mut cost,
+                    &mut parent,
+                    &mut heap,
+                    s,
+                    index(c, r, nd),
+                    cand,
+                    h(c, r),
+                );
             }
             // A move along the direction faced.
             let (mx, my) = MOVES[d];
@@ -599,16 +598,16 @@ impl Lattice {
                 }
             }
             let step_m = ((mx * mx + my * my) as f64).sqrt() * NAV_CELL_M;
-            let next = index(nc, nr, d);
             let cand = cost[s] + step_m / self.speed_mps;
-            if cand < cost[next] {
-                cost[next] = cand;
-                parent[next] = state;
-                heap.push(Open {
-                    f: cand + h(nc, nr),
-                    state: next as u32,
-                });
-            }
+            relax(
+                &mut cost,
+                &mut parent,
+                &mut heap,
+                s,
+                index(nc, nr, d),
+                cand,
+                h(nc, nr),
+            );
         }
         let mut s = reached?;
         let mut cells = Vec::new();
@@ -619,8 +618,8 @@ impl Lattice {
                 cells.push(p);
             }
             match parent[s] {
-                u32::MAX => break,
-                p => s = p as usize,
+                usize::MAX => break,
+                p => s = p,
             }
         }
         cells.reverse();
@@ -668,33 +667,25 @@ impl Lattice {
     }
 }
 
-/// An open lattice state, cheapest estimate first.
-#[derive(Clone, Copy, Debug)]
-struct Open {
-    f: f64,
-    state: u32,
-}
-
-impl PartialEq for Open {
-    fn eq(&self, other: &Self) -> bool {
-        self.f.total_cmp(&other.f) == Ordering::Equal
-    }
-}
-
-impl Eq for Open {}
-
-impl PartialOrd for Open {
-    fn partial_cmp(&self, other: &Self) -> Option<Ordering> {
-        Some(self.cmp(other))
-    }
-}
-
-impl Ord for Open {
-    fn cmp(&self, other: &Self) -> Ordering {
-        other
-            .f
-            .total_cmp(&self.f)
-            .then(other.state.cmp(&self.state))
+/// A* relaxation: reaching `next` from `from` at cost `cand` (s), with the heuristic `h_next`
+/// left to go.
+fn relax(
+    cost: &mut [f64],
+    parent: &mut [usize],
+    heap: &mut BinaryHeap<OpenEntry>,
+    from: usize,
+    next: usize,
+    cand: f64,
+    h_next: f64,
+) {
+    if cand < cost[next] {
+        cost[next] = cand;
+        parent[next] = from;
+        heap.push(OpenEntry {
+            f: cand + h_next,
+            g: cand,
+            index: next,
+        });
     }
 }
 
