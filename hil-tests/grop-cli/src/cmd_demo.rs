@@ -93,6 +93,11 @@ pub struct Args {
     /// (e.g. `can-silent`, `second-commander`, `rtde-silent`; docs/reliability.md lists all).
     #[arg(long, value_name = "KIND[@WHEN]")]
     pub fault: Option<hil_world::faults::FaultSpec>,
+    /// Move a chair during the closed-loop mission, after the overhead frame was taken:
+    /// AT_S:CHAIR:X:Y:YAW (simulated seconds, the chair's index in the scene, where it goes);
+    /// repeat for more. The range sensor sees it, the onboard map does not.
+    #[arg(long = "move-chair", value_name = "AT_S:CHAIR:X:Y:YAW")]
+    pub move_chair: Vec<hil_world::moves::ChairMove>,
 }
 
 /// The pipeline once as one calculation (the fast model `grop eval` uses): no processes

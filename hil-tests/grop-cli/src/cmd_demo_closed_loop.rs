@@ -62,6 +62,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         fault: args.fault,
         lidar: true,
         unmapped_chairs: Vec::new(),
+        chair_moves: args.move_chair.clone(),
     };
     println!(
         "scene {:?}: {} chairs, {} objects; robot at {:.1} m/s, R = {}; method {}",

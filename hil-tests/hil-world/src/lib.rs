@@ -18,6 +18,7 @@ pub mod faults;
 pub mod fixes;
 pub mod lidar;
 pub mod mission;
+pub mod moves;
 pub mod objects;
 pub mod report;
 pub mod suite;
@@ -97,6 +98,8 @@ pub struct WorldConfig {
     /// When the executive asks again after a latched stop cleared (a safeguard stop), the
     /// operator looks before enabling: this long.
     pub operator_resume_delay: Duration,
+    /// Chairs the world moves during the mission ([`moves`]).
+    pub chair_moves: Vec<moves::ChairMove>,
 }
 
 impl WorldConfig {
@@ -131,6 +134,7 @@ impl WorldConfig {
             lidar: true,
             operator_delay: Some(Duration::from_millis(100)),
             operator_resume_delay: Duration::from_secs(1),
+            chair_moves: Vec::new(),
         }
     }
 }
@@ -153,6 +157,9 @@ pub enum WorldError {
     /// iceoryx2.
     #[error("IPC: {0}")]
     Ipc(String),
+    /// A chair move that does not fit the scene.
+    #[error("{0}")]
+    ChairMove(#[from] moves::ChairMoveError),
     /// The robot file's `carry_capacity` exceeds the tray's slots (the plans would load objects
     /// the tray cannot hold).
     #[error(
@@ -216,6 +223,9 @@ impl World {
     /// Creates the clock, joins the bus, starts the simulated UR5e (externally stepped, on
     /// ephemeral loopback ports) and opens the topics.
     pub fn new(config: WorldConfig) -> Result<Self, WorldError> {
+        for m in &config.chair_moves {
+            m.check(&config.scene)?;
+        }
         if config.robot.carry_capacity as usize > config.tray_slots.len() {
             return Err(WorldError::CarryCapacity {
                 carry_capacity: config.robot.carry_capacity,
@@ -341,7 +351,9 @@ impl World {
     )]
     pub fn run(&mut self, stop: &dyn Fn() -> bool) -> WorldReport {
         let wall_start = Instant::now();
-        let cfg = self.config.clone();
+        // The truth may change during the run (chairs moved); the configuration keeps the start.
+        let mut cfg = self.config.clone();
+        let mut mover = moves::Mover::new(&cfg.chair_moves);
         let mut report = WorldReport {
             scene: cfg.scene.name.clone(),
             seed: cfg.seed,
@@ -453,6 +465,12 @@ impl World {
                 if let Some(rec) = report.fault.as_mut() {
                     rec.enabled_after_release_at_s = Some(secs(now));
                 }
+            }
+            // Things move: the sensor, the contact check and the camera see the new truth.
+            if mover.apply_due(now, &mut cfg.scene)
+                && let Some(lidar) = self.lidar.as_mut()
+            {
+                lidar.set_scene(&cfg.scene);
             }
             // Devices.
             let limits = base_limits(self.base.sim());

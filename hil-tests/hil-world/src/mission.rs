@@ -158,6 +158,9 @@ pub struct MissionSpec {
     /// the map was made. The world (and its camera) has them; only the range sensor tells the
     /// executive.
     pub unmapped_chairs: Vec<world::Chair>,
+    /// Chairs the world moves during the mission (indices into the world's scene: the map's
+    /// chairs, then `unmapped_chairs`).
+    pub chair_moves: Vec<crate::moves::ChairMove>,
 }
 
 static RUNS: AtomicU64 = AtomicU64::new(0);
@@ -185,6 +188,7 @@ impl MissionSpec {
             fault: None,
             lidar: true,
             unmapped_chairs: Vec::new(),
+            chair_moves: Vec::new(),
         }
     }
 }
@@ -531,6 +535,9 @@ pub fn start(spec: &MissionSpec, bins: &Binaries) -> anyhow::Result<RunningMissi
         .stderr(log("world")?);
     if let Some(p) = spec.pace {
         world_cmd.args(["--pace", &p.to_string()]);
+    }
+    for m in &spec.chair_moves {
+        world_cmd.args(["--move-chair", &m.to_string()]);
     }
     if let Some(f) = spec.fault {
         world_cmd.args(["--fault", &f.to_string()]);

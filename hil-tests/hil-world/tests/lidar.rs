@@ -175,3 +175,49 @@ fn without_the_lidar_the_same_mission_drives_into_the_chair() {
     );
     let _ = std::fs::remove_dir_all(&spec.dir);
 }
+
+#[test]
+fn a_chair_pushed_into_the_standing_spot_holds_the_leg_until_it_is_pulled_away() {
+    // Things move: 4 s into the mission, on the way to the loading station, a chair is pushed
+    // into the station's standing spot (the map, and the frame the plan came from, have it
+    // elsewhere); at 26 s it is pulled away again. At the pre-goal the scan shows the way in
+    // blocked at every shift along the table: the base waits there (3 s), the leg fails, the
+    // next plan comes back to the same spot; once the chair is gone the base drives in and
+    // loads. It never drives in while the chair is there.
+    let scene = west_of_the_station(3.0);
+    let station = scene.loading_station;
+    let home = scene.chairs[0];
+    let moved = |at_s: f64, x_m: f64, y_m: f64, yaw_rad: f64| hil_world::moves::ChairMove {
+        at_s,
+        chair: 0,
+        x_m,
+        y_m,
+        yaw_rad,
+    };
+    let spec = MissionSpec {
+        scene,
+        chair_moves: vec![
+            moved(4.0, station.x_m, station.y_m + 0.25, 0.0),
+            moved(26.0, home.x_m, home.y_m, home.yaw_rad),
+        ],
+        max_sim_s: 60.0,
+        lidar: true,
+        ..spec("lidar-moved-chair", 5)
+    };
+    let report = run(&spec);
+    let gap = no_base_contact(&report);
+    assert!(gap >= 0.01, "closest call {gap:.3} m");
+    let waited = said(&report, "blocked (the scan sees something): waiting");
+    assert!(
+        waited.is_some_and(|t| t > 4.0 && t < 26.0),
+        "the base waits at the pre-goal: {:?}",
+        report.events
+    );
+    let loaded = said(&report, "on the tray");
+    assert!(
+        loaded.is_some_and(|t| t > 26.0),
+        "loaded once the chair was gone, not before: {:?}",
+        report.events
+    );
+    let _ = std::fs::remove_dir_all(&spec.dir);
+}

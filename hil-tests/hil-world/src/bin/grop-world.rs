@@ -59,6 +59,10 @@ struct Args {
     /// monitor: the behaviour before the lidar, for comparisons).
     #[arg(long)]
     no_lidar: bool,
+    /// Move a chair during the mission: AT_S:CHAIR:X:Y:YAW (simulated seconds, the chair's
+    /// index in the scene file, where it goes); repeat for more moves.
+    #[arg(long = "move-chair", value_name = "AT_S:CHAIR:X:Y:YAW")]
+    move_chair: Vec<hil_world::moves::ChairMove>,
 }
 
 static STOP: AtomicBool = AtomicBool::new(false);
@@ -109,6 +113,7 @@ fn main() -> anyhow::Result<()> {
         .collect();
     config.fault = args.fault;
     config.lidar = !args.no_lidar;
+    config.chair_moves = args.move_chair;
     let mut world = World::new(config).context("starting the world")?;
     let ports = world.arm_ports();
     let c = world.config();

@@ -50,6 +50,9 @@ pub const DOCK_SHIFTS_M: [f64; 11] = [
 /// plus a few centimetres of localisation error.
 pub const TURN_MARGIN_M: f64 = 0.06;
 
+/// How often a blocked way in to a standing spot is looked at again while the base waits.
+const DOCK_RECHECK: Duration = Duration::from_millis(200);
+
 /// How long the worker may take for a path.
 const PATH_ANSWER_TIMEOUT: Duration = Duration::from_secs(5);
 
@@ -158,6 +161,26 @@ impl MissionCore {
                     // whether (and where, within a few centimetres) to drive straight in.
                     let Some((gx, gy)) = self.docking_goal_in_the_scan(pose, goal, inputs, outputs)
                     else {
+                        // Blocked: an operational hold first (someone may pull the chair
+                        // away), the leg failed if it lasts.
+                        let since = *self.dock_blocked_since.get_or_insert(now);
+                        if now.saturating_sub(since) < self.config.docking_blocked_timeout {
+                            if since == now {
+                                self.event(
+                                    EventKind::Obstacle,
+                                    now,
+                                    format_args!(
+                                        "the way in to the standing spot is blocked (the scan sees something): waiting"
+                                    ),
+                                    outputs,
+                                );
+                            }
+                            self.dock = Some(goal);
+                            return Some(Phase::Settling {
+                                until: now + DOCK_RECHECK,
+                            });
+                        }
+                        self.dock_blocked_since = None;
                         return self.leg_failed(
                             step,
                             now,
@@ -165,6 +188,7 @@ impl MissionCore {
                             outputs,
                         );
                     };
+                    self.dock_blocked_since = None;
                     match self
                         .follower
                         .set_line([pose.x_m as f32, pose.y_m as f32], [gx as f32, gy as f32])
@@ -458,6 +482,7 @@ impl MissionCore {
         outputs: &mut CycleOutputs,
     ) -> Option<Phase> {
         self.dock_goal = None;
+        self.dock_blocked_since = None;
         self.velocity = Twist::ZERO;
         self.event(
             EventKind::LegFinished,

@@ -202,6 +202,8 @@ pub struct MissionCore {
     /// The goal of the docking stretch being driven and how near it the monitor uses its
     /// docking shape: `[x, y, range]`.
     pub(super) dock_goal: Option<[f64; 3]>,
+    /// Since when the way in to the standing spot has been seen blocked at the pre-goal.
+    pub(super) dock_blocked_since: Option<Duration>,
     /// The scene (static map) for footprint checks at a true heading.
     pub(super) scene: Arc<world::Scene>,
     /// The robot with its footprint grown by the docking line's margin.
@@ -285,6 +287,7 @@ impl MissionCore {
             global_fix_received: None,
             future_fixes: 0,
             dock_goal: None,
+            dock_blocked_since: None,
             line_robot,
             sound_line_robot,
             turn_robot,

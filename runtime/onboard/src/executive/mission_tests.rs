@@ -941,6 +941,13 @@ fn a_chair_the_scan_sees_in_the_standing_spot_fails_the_leg_before_the_base_driv
     let chair: Vec<[f32; 2]> = (0..9).map(|k| [0.6, -0.2 + 0.05 * k as f32]).collect();
     let (b, line) = dock_with_scan(&chair);
     assert!(line.is_none(), "did not drive in: {line:?}");
+    // It waited first (an operational hold: the chair may be pulled away), then gave up.
+    assert!(
+        b.events.iter().any(|(k, d)| *k == EventKind::Obstacle
+            && d.contains("blocked (the scan sees something): waiting")),
+        "{:?}",
+        b.events
+    );
     assert!(
         b.events
             .iter()
