@@ -49,11 +49,23 @@ pub enum Channel {
     LoadRequest,
     /// `operator/enable` (the operator's enable; since `log_format` 3).
     OperatorEnable,
+    /// `/tf`: the frames (`foxglove.FrameTransforms`; a view, since `log_format` 4).
+    Tf,
+    /// `/scene`: the room, furniture, targets, tray (`foxglove.SceneUpdate`; a view, since 4).
+    Scene,
+    /// `/plan/path`: the plan's route (`foxglove.PosesInFrame`; a view, since 4).
+    PlannedPath,
+    /// `/base/path`: the route driven so far (`foxglove.PosesInFrame`; a view, since 4).
+    DrivenPath,
+    /// `/heatmaps/grid`: Psi's heatmaps over the floor (`foxglove.Grid`; a view, since 4).
+    HeatmapGrid,
+    /// `/events/log`: the events as log messages (`foxglove.Log`; a view, since 4).
+    EventLog,
 }
 
 impl Channel {
     /// All channels, in channel-id order.
-    pub const ALL: [Channel; 14] = [
+    pub const ALL: [Channel; 20] = [
         Channel::CameraFrame,
         Channel::Heatmaps,
         Channel::TaskPlan,
@@ -68,7 +80,29 @@ impl Channel {
         Channel::DecisionTiming,
         Channel::LoadRequest,
         Channel::OperatorEnable,
+        Channel::Tf,
+        Channel::Scene,
+        Channel::PlannedPath,
+        Channel::DrivenPath,
+        Channel::HeatmapGrid,
+        Channel::EventLog,
     ];
+
+    /// The channels in Foxglove's well-known schemas that the recorder derives from the others
+    /// (`super::views`): a replay compares the messages they come from, not them.
+    pub const VIEWS: [Channel; 6] = [
+        Channel::Tf,
+        Channel::Scene,
+        Channel::PlannedPath,
+        Channel::DrivenPath,
+        Channel::HeatmapGrid,
+        Channel::EventLog,
+    ];
+
+    /// Whether the recorder derives this channel from the others (see [`Channel::VIEWS`]).
+    pub fn is_view(self) -> bool {
+        Channel::VIEWS.contains(&self)
+    }
 
     /// The MCAP topic.
     pub fn topic(self) -> &'static str {
@@ -87,6 +121,12 @@ impl Channel {
             Channel::DecisionTiming => "/timing/decision",
             Channel::LoadRequest => "/load/request",
             Channel::OperatorEnable => "/operator/enable",
+            Channel::Tf => "/tf",
+            Channel::Scene => "/scene",
+            Channel::PlannedPath => "/plan/path",
+            Channel::DrivenPath => "/base/path",
+            Channel::HeatmapGrid => "/heatmaps/grid",
+            Channel::EventLog => "/events/log",
         }
     }
 
@@ -112,6 +152,11 @@ impl Channel {
             Channel::DecisionTiming => "grop.DecisionTiming",
             Channel::LoadRequest => "grop.LoadRequest",
             Channel::OperatorEnable => "grop.OperatorEnable",
+            Channel::Tf => "foxglove.FrameTransforms",
+            Channel::Scene => "foxglove.SceneUpdate",
+            Channel::PlannedPath | Channel::DrivenPath => "foxglove.PosesInFrame",
+            Channel::HeatmapGrid => "foxglove.Grid",
+            Channel::EventLog => "foxglove.Log",
         }
     }
 
@@ -241,6 +286,12 @@ impl Channel {
                 "Wall-clock time the planner took for a plan (a measurement, not behaviour)",
                 json!({"plan_id": int, "decision_us": int}),
             ),
+            Channel::Tf
+            | Channel::Scene
+            | Channel::PlannedPath
+            | Channel::DrivenPath
+            | Channel::HeatmapGrid
+            | Channel::EventLog => return super::foxglove::json_schema(self.schema_name()),
         };
         json!({
             "$schema": "https://json-schema.org/draft/2020-12/schema",
