@@ -419,7 +419,6 @@ impl Views {
             | None => level::ERROR,
             Some(
                 EventKind::UnloadFailed
-                | EventKind::ReplanRequested
                 | EventKind::StaleInput
                 | EventKind::TrayMismatch
                 | EventKind::NotPlanned
@@ -628,7 +627,7 @@ impl Views {
                 target.x_m,
                 target.y_m,
                 target.z_m + 0.25,
-                format!("object {i}: {}", state.name()),
+                format!("{i} {}", state.name()),
             ));
             e.metadata.push(super::foxglove::KeyValuePair {
                 key: "state".to_owned(),
@@ -658,12 +657,9 @@ impl Views {
                             } else {
                                 0.0
                             };
-                            spots.texts.push(label(
-                                g.x_m,
-                                g.y_m,
-                                0.35,
-                                format!("object {}: F {f:.2}", st.object),
-                            ));
+                            spots
+                                .texts
+                                .push(label(g.x_m, g.y_m, 0.35, format!("F {f:.2}")));
                         }
                     }
                     _ => {}
@@ -686,7 +682,7 @@ impl Views {
             0.5 * hb,
             0.0,
             [l, w, hb],
-            rgba(60, 60, 60, 0.8),
+            rgba(190, 190, 200, 0.9),
         ));
         let mut slot = 0.0;
         for i in 0..self.objects.len().min(64) {
@@ -916,7 +912,8 @@ mod tests {
                 .cloned()
                 .unwrap_or_else(|| panic!("no entity {id}"))
         };
-        assert_eq!(entity("target/0")["texts"][0]["text"], "object 0: placed");
+        assert_eq!(entity("target/0")["texts"][0]["text"], "0 placed");
+        assert_eq!(entity("target/0")["metadata"][0]["value"], "placed");
         assert_eq!(entity("robot/base")["cubes"].as_array().unwrap().len(), 1);
         assert_eq!(
             entity("standing_spots")["arrows"].as_array().unwrap().len(),
@@ -924,7 +921,7 @@ mod tests {
         );
         // The first scene, before anything happened: pending.
         let (_, _, first) = out.iter().find(|(c, _, _)| *c == Channel::Scene).unwrap();
-        assert!(String::from_utf8_lossy(first).contains("object 0: pending"));
+        assert!(String::from_utf8_lossy(first).contains("\"0 pending\""));
         // The plan's path: the pose then, and two goals.
         assert_eq!(
             last(Channel::PlannedPath)["poses"]
