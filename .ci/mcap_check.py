@@ -22,14 +22,14 @@ from mcap.reader import make_reader
 EXPECTED = {
     "/camera/frame", "/heatmaps", "/plan/task", "/plan/request", "/base/pose", "/base/state",
     "/arm/state", "/arm/io", "/events", "/health", "/can", "/timing/decision", "/load/request", "/operator/enable",
-    "/tf", "/scene", "/plan/path", "/base/path", "/heatmaps/grid", "/events/log",
+    "/tf", "/scene", "/plan/path", "/base/path", "/heatmaps/grid", "/events/log", "/scan",
 }
 # The well-known schema each of these topics must have.
 WELL_KNOWN = {
     "/camera/frame": "foxglove.RawImage", "/tf": "foxglove.FrameTransforms",
     "/scene": "foxglove.SceneUpdate", "/plan/path": "foxglove.PosesInFrame",
     "/base/path": "foxglove.PosesInFrame", "/heatmaps/grid": "foxglove.Grid",
-    "/events/log": "foxglove.Log",
+    "/events/log": "foxglove.Log", "/scan": "foxglove.PointCloud",
 }
 GROP_RAW_IMAGE_EXTRAS = {"grop_frame_id", "metres_per_px", "left_x_m", "top_y_m"}
 
@@ -81,6 +81,9 @@ def check_well_known(topic, schema_name, doc):
         if message.row_stride == 0 or len(message.data) % message.row_stride \
                 or message.row_stride < message.column_count * message.cell_stride:
             return f"grid data of {len(message.data)} bytes, row stride {message.row_stride}"
+    if schema_name == "foxglove.PointCloud":
+        if message.point_stride < 12 or len(message.data) % message.point_stride:
+            return f"point cloud data of {len(message.data)} bytes, stride {message.point_stride}"
     if schema_name == "foxglove.SceneUpdate" and not message.entities:
         return "a scene without entities"
     if schema_name == "foxglove.FrameTransforms" and not message.transforms:

@@ -424,6 +424,23 @@ impl Painter<'_> {
             draw_entity(img, &view, &to_map, e);
         }
         self.paths(img, &view, topics)?;
+        if visible("/scan") {
+            if let Some(m) = self.latest("/scan") {
+                let cloud: Value = serde_json::from_slice(&m.data)?;
+                let colour = topics["/scan"]["flatColor"]
+                    .as_str()
+                    .and_then(hex)
+                    .unwrap_or(TEXT);
+                let size = topics["/scan"]["pointSize"].as_f64().unwrap_or(3.0);
+                // Through the frames as they were when the scan was taken.
+                let then = self
+                    .log
+                    .messages
+                    .iter()
+                    .rfind(|t| t.channel == Channel::Tf && t.log_time <= m.log_time);
+                draw_cloud(img, &view, &Frames::at(then)?, &cloud, colour, size)?;
+            }
+        }
         // The visible frames' axes (x red, y green).
         let shown = &config["transforms"];
         for name in frames.parents.keys() {
@@ -842,6 +859,55 @@ fn draw_grid(img: &mut RgbImage, view: &View, g: &Value, lo: f64, hi: f64) -> an
                 })
                 .collect();
             fill_polygon(img, &corners, turbo(s));
+        }
+    }
+    Ok(())
+}
+
+/// A Foxglove point cloud's x and y (float32 fields `x`, `y`) as dots, through its frame.
+fn draw_cloud(
+    img: &mut RgbImage,
+    view: &View,
+    frames: &Frames,
+    cloud: &Value,
+    colour: Rgb<u8>,
+    size: f64,
+) -> anyhow::Result<()> {
+    let Some(to_map) = frames.to_map(cloud["frame_id"].as_str().unwrap_or("")) else {
+        return Ok(());
+    };
+    let to_map = to_map.then(&Transform {
+        t: position(&cloud["pose"]),
+        q: quat(&cloud["pose"]["orientation"]),
+    });
+    let data = BASE64
+        .decode(cloud["data"].as_str().unwrap_or(""))
+        .context("the point cloud's data is not base64")?;
+    let stride = cloud["point_stride"].as_u64().unwrap_or(0) as usize;
+    let offset = |name: &str| {
+        cloud["fields"]
+            .as_array()
+            .into_iter()
+            .flatten()
+            .find(|f| f["name"] == name)
+            .and_then(|f| f["offset"].as_u64())
+            .map(|o| o as usize)
+    };
+    let (Some(ox), Some(oy)) = (offset("x"), offset("y")) else {
+        return Ok(());
+    };
+    if stride == 0 {
+        return Ok(());
+    }
+    let f32_at = |i: usize| {
+        data.get(i..i + 4)
+            .map(|b| f64::from(f32::from_le_bytes([b[0], b[1], b[2], b[3]])))
+    };
+    for p in 0..data.len() / stride {
+        if let (Some(x), Some(y)) = (f32_at(p * stride + ox), f32_at(p * stride + oy)) {
+            let w = to_map.apply([x, y, 0.0]);
+            let (px, py) = view.px(w[0], w[1]);
+            disc(img, px, py, 0.5 * size, colour);
         }
     }
     Ok(())

@@ -381,6 +381,23 @@ pub struct Grid {
     pub data: String,
 }
 
+/// `foxglove.PointCloud`: points packed one after the other, each `point_stride` bytes.
+#[derive(Serialize, Clone, Debug, PartialEq)]
+pub struct PointCloud {
+    /// When.
+    pub timestamp: Time,
+    /// Frame of the pose.
+    pub frame_id: String,
+    /// Origin of the points in the frame.
+    pub pose: Pose,
+    /// Bytes per point.
+    pub point_stride: u32,
+    /// The fields of a point.
+    pub fields: Vec<PackedElementField>,
+    /// The points (base64).
+    pub data: String,
+}
+
 /// `foxglove.Log`.
 #[derive(Serialize, Clone, Debug, PartialEq)]
 pub struct Log {
@@ -562,6 +579,14 @@ pub fn fields(schema: &str) -> Option<&'static [(&'static str, Kind)]> {
             ("name", Str),
             ("file", Str),
             ("line", Int),
+        ],
+        "PointCloud" => &[
+            ("timestamp", T),
+            ("frame_id", Str),
+            ("pose", Msg("Pose")),
+            ("point_stride", Int),
+            ("fields", Msgs("PackedElementField")),
+            ("data", Bytes),
         ],
         "LaserScan" => &[
             ("timestamp", T),

@@ -18,6 +18,9 @@ use super::live::LiveFeed;
 use super::views::Views;
 use super::writer::{LogWriter, WriterSummary};
 
+/// Time between two logged revolutions of the range sensor (ns of their stamps).
+const SCAN_PERIOD_NS: u64 = 1_000_000_000;
+
 /// Frames kept back in case a plan names them.
 const CAMERA_RING: usize = 4;
 
@@ -49,6 +52,7 @@ struct Subs {
     events: TopicSubscriber<EventMsg>,
     health: TopicSubscriber<HeartbeatMsg>,
     enables: TopicSubscriber<grop_ipc::OperatorEnableMsg>,
+    scans: TopicSubscriber<grop_ipc::ScanMsg>,
 }
 
 /// A message taken from a topic: its sort key, its encoding and a copy.
@@ -74,6 +78,7 @@ pub struct Recorder {
     writer: LogWriter,
     config: RecorderConfig,
     last_camera_stamp: Option<u64>,
+    last_scan_stamp: Option<u64>,
     held: VecDeque<HeldFrame>,
     /// Recently logged frame ids.
     logged_frames: VecDeque<u64>,
@@ -110,11 +115,13 @@ impl Recorder {
                 events: node.subscriber().map_err(port)?,
                 health: node.subscriber().map_err(port)?,
                 enables: node.subscriber().map_err(port)?,
+                scans: node.subscriber().map_err(port)?,
             },
             bus,
             writer,
             config,
             last_camera_stamp: None,
+            last_scan_stamp: None,
             held: VecDeque::with_capacity(CAMERA_RING),
             logged_frames: VecDeque::with_capacity(16),
             receive_errors: 0,
@@ -279,6 +286,21 @@ impl Recorder {
             |m| (m.stamp_ns, m.seq),
             codec::encode_event,
         );
+        // One revolution of the range sensor per second (of ten).
+        let mut scans = Self::take(
+            &self.subs.scans,
+            e,
+            |m| (m.stamp_ns, m.seq),
+            codec::encode_scan,
+        );
+        let last_scan = &mut self.last_scan_stamp;
+        scans.retain(|t| {
+            let due = last_scan.is_none_or(|last| t.stamp >= last + SCAN_PERIOD_NS);
+            if due {
+                *last_scan = Some(t.stamp);
+            }
+            due
+        });
         if let Some(views) = &mut self.views {
             for t in &arm {
                 views.arm_state(&t.msg);
@@ -300,6 +322,7 @@ impl Recorder {
         n += self.emit_batch(Channel::PlanRequest, now_ns, &mut requests);
         n += self.emit_batch(Channel::LoadRequest, now_ns, &mut loads);
         n += self.emit_batch(Channel::Events, now_ns, &mut events);
+        n += self.emit_batch(Channel::Scan, now_ns, &mut scans);
         if let Some(bus) = self.bus.as_mut() {
             loop {
                 match bus.try_recv() {

@@ -165,10 +165,12 @@ pub struct ReplayOptions {
 
 /// Whether a logged message is something the two nodes made (compared) rather than an input.
 /// Whether a replay compares this message: behaviour only. Not the wall-clock measurements
-/// under `/timing/`, and not the views in Foxglove's schemas (`Channel::is_view`), which the
-/// recorder derives from the compared messages (and which logs before `log_format` 4 lack).
+/// under `/timing/`, not the views in Foxglove's schemas (`Channel::is_view`), which the
+/// recorder derives from the compared messages (and which logs before `log_format` 4 lack), and
+/// not the range sensor's revolutions (`/scan`): the sensor's packets are not in the log, so the
+/// replayed executive runs without it.
 pub fn compared(m: &LoggedMessage) -> bool {
-    !m.channel.topic().starts_with("/timing/") && !m.channel.is_view()
+    !m.channel.topic().starts_with("/timing/") && !m.channel.is_view() && m.channel != Channel::Scan
 }
 
 fn is_world_input(m: &LoggedMessage) -> bool {

@@ -12,7 +12,7 @@
 //!   `/arm/state`, on the robot file's mount.
 //! - `/scene` (`foxglove.SceneUpdate`, whenever something in it changes): the room, the tables,
 //!   the chairs, the loading station, each object's target labelled with its state (pending,
-//!   planned, on the tray, placed, failed), the plan's standing spots with their F, the objects
+//!   planned, on tray, placed, failed), the plan's standing spots with their F, the objects
 //!   on the tray and the robot's body (attached to its frames).
 //! - `/plan/path` (`foxglove.PosesInFrame`, per plan): the base's pose when the plan arrived,
 //!   then each navigate step's goal.
@@ -83,7 +83,7 @@ impl ObjectState {
         match self {
             Self::Pending => "pending",
             Self::Planned => "planned",
-            Self::OnTray => "on the tray",
+            Self::OnTray => "on tray",
             Self::Placed => "placed",
             Self::Failed => "failed",
         }
