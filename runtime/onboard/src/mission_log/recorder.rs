@@ -2,7 +2,9 @@
 //! on every topic and every frame on the CAN bus, encode it and queue it for the writer. Camera
 //! frames are kept at the rate the planner uses them: one per `camera_period`, plus any frame a
 //! plan or heatmaps name that was not kept (the newest few frames wait in a small ring for that),
-//! so a replay always has the frame each decision saw.
+//! so a replay always has the frame each decision saw. The lidar's revolutions are kept at one
+//! a second. With [`Recorder::with_views`] it also logs the channels in Foxglove's well-known
+//! schemas that it derives from what it took ([`Views`]), after each drain's messages.
 
 use std::collections::VecDeque;
 
