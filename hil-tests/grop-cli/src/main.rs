@@ -18,6 +18,7 @@ mod cmd_eval_settings;
 mod cmd_hil;
 mod cmd_hil_suite;
 mod cmd_latency;
+mod cmd_layout_picture;
 mod cmd_merge;
 mod cmd_model_eval;
 mod cmd_render;
@@ -61,6 +62,9 @@ enum Command {
     /// Re-run the planner and the executive against a mission log's recorded inputs and report
     /// the first message where they now differ.
     Replay(cmd_replay::Args),
+    /// Draw what the committed Foxglove layout (docs/foxglove-layout.json) shows of a mission
+    /// log, panel by panel, into a PNG (no Foxglove app needed).
+    LayoutPicture(cmd_layout_picture::Args),
     /// Latency suite: camera frames across processes, loop jitter, CAN round trip,
     /// allocations; writes out/latency.md (docs/latency.md with --write-docs).
     Latency(cmd_latency::Args),
@@ -93,6 +97,7 @@ fn main() -> std::process::ExitCode {
         Command::BenchSettings(a) => cmd_bench_settings::run(a),
         Command::Hil(a) => cmd_hil::run(a),
         Command::Replay(a) => cmd_replay::run(a),
+        Command::LayoutPicture(a) => cmd_layout_picture::run(a),
         Command::Latency(a) => cmd_latency::run(a),
         Command::Soak(a) => cmd_soak::run(a),
         Command::Merge(a) => cmd_merge::run(a),

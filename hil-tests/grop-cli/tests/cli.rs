@@ -55,6 +55,29 @@ fn demo_runs_the_closed_loop_and_reports_decision_steps_and_latency() {
     ] {
         assert!(run.join(f).is_file(), "{f} missing");
     }
+    // The committed Foxglove layout's panels, drawn from that log (from another folder: the
+    // layout is found in the checkout); a layout that is not there is named.
+    let layout_png = dir.path().join("layout.png");
+    let o = Command::new(env!("CARGO_BIN_EXE_grop"))
+        .current_dir(dir.path())
+        .args(["layout-picture", log.to_str().unwrap(), "--out"])
+        .arg(&layout_png)
+        .args(["--width", "900", "--height", "600"])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", text(&o));
+    let bytes = std::fs::read(&layout_png).unwrap();
+    assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n");
+    // The IHDR chunk's width.
+    assert_eq!(u32::from_be_bytes(bytes[16..20].try_into().unwrap()), 900);
+    let o = grop(&[
+        "layout-picture",
+        log.to_str().unwrap(),
+        "--layout",
+        "no-such.json",
+    ]);
+    assert!(!o.status.success());
+    assert!(text(&o).contains("no-such.json"), "{}", text(&o));
 }
 
 #[test]

@@ -48,6 +48,7 @@ mod camera;
 mod messages;
 mod mission;
 mod port;
+mod scan;
 
 pub use admit::{Admission, AdmittingSubscriber, Refusal, Sender, Sequenced};
 pub use arm_io::{
@@ -72,6 +73,7 @@ pub use port::{
     FrameError, IpcNode, NodeError, PortError, PublishError, ReceiveError, Received,
     TopicPublisher, TopicSubscriber, wait_any,
 };
+pub use scan::{SCAN_BINS, ScanMsg};
 
 /// A message type with its service: name and queue sizes. Implemented for the message types of
 /// this crate only (sealed), each of which is plain data for which all-zero bytes are a valid
@@ -107,6 +109,7 @@ mod sealed {
     impl Sealed for super::CameraFrameMsg {}
     impl Sealed for super::ArmIoMsg {}
     impl Sealed for super::OperatorEnableMsg {}
+    impl Sealed for super::ScanMsg {}
 }
 
 impl Topic for BaseStateMsg {
@@ -114,6 +117,18 @@ impl Topic for BaseStateMsg {
     const HISTORY: usize = 1;
     // 50 Hz for over a second, for a reader that logs every state.
     const BUFFER: usize = 64;
+    const MAX_SUBSCRIBERS: usize = 8;
+    const MAX_PUBLISHERS: usize = 2;
+    fn stamp_ns(&self) -> u64 {
+        self.stamp_ns
+    }
+}
+
+impl Topic for ScanMsg {
+    const NAME: &'static str = "base/scan";
+    const HISTORY: usize = 1;
+    // 10 revolutions a second; the recorder reads every cycle.
+    const BUFFER: usize = 8;
     const MAX_SUBSCRIBERS: usize = 8;
     const MAX_PUBLISHERS: usize = 2;
     fn stamp_ns(&self) -> u64 {

@@ -4,16 +4,18 @@
 //! 4 simulated seconds of `grop demo --max-sim-s 4` (640 x 480 camera), written by the build
 //! before version 2 existed (commit 5d0e6ef0). `tests/data/mission-log-v2.mcap` is the same
 //! for version 2, written by the build before version 3 (commit 5cc3e9a9: no operator enable,
-//! no safety mode in `/arm/io`). They stay as they are; the reader and `grop replay` must keep
+//! no safety mode in `/arm/io`). `tests/data/mission-log-v3.mcap` is the same for version 3,
+//! written by the build before version 4 (commit d9b2c855: no channels in Foxglove's well-known
+//! schemas but the camera). They stay as they are; the reader and `grop replay` must keep
 //! reading them.
 #![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failure panics with its message
 
 use std::path::{Path, PathBuf};
 
 use grop_ipc::CameraFrameMsg;
-use grop_onboard::mission_log::replay::{ReplayOptions, replay};
+use grop_onboard::mission_log::replay::{ReplayOptions, compared, replay};
 use grop_onboard::mission_log::{
-    Channel, LOG_FORMAT, LOG_METADATA, MISSION_METADATA, MissionLog, codec,
+    Channel, LOG_FORMAT, LOG_METADATA, MISSION_METADATA, MissionLog, codec, foxglove,
 };
 
 fn repo(path: &str) -> PathBuf {
@@ -24,6 +26,7 @@ fn repo(path: &str) -> PathBuf {
 
 const V1: &str = "runtime/onboard/tests/data/mission-log-v1.mcap";
 const V2: &str = "runtime/onboard/tests/data/mission-log-v2.mcap";
+const V3: &str = "runtime/onboard/tests/data/mission-log-v3.mcap";
 
 #[test]
 fn a_version_1_log_reads_and_every_message_decodes() {
@@ -33,6 +36,11 @@ fn a_version_1_log_reads_and_every_message_decodes() {
 #[test]
 fn a_version_2_log_reads_and_every_message_decodes() {
     reads_and_decodes(V2, 2);
+}
+
+#[test]
+fn a_version_3_log_reads_and_every_message_decodes() {
+    reads_and_decodes(V3, 3);
 }
 
 fn reads_and_decodes(path: &str, version: u32) {
@@ -91,9 +99,57 @@ fn grop_replay_runs_on_a_version_2_log() {
     replays(V2);
 }
 
+/// The replay of a version-3 log writes version 4: with the channels in Foxglove's well-known
+/// schemas, which the old log lacks and the replay does not compare.
+#[test]
+fn grop_replay_runs_on_a_version_3_log_and_writes_the_foxglove_channels() {
+    let (_dir, replayed) = replays(V3);
+    let old = MissionLog::read(&repo(V3)).expect("the old log reads");
+    for c in Channel::VIEWS {
+        assert_eq!(
+            old.channel(c).count(),
+            0,
+            "{} in a version-3 log",
+            c.topic()
+        );
+    }
+    // The replay's log, as MCAP records: each view's channel with its schema and encoding.
+    let bytes = std::fs::read(&replayed).expect("the replay's log");
+    let mut schemas = std::collections::BTreeMap::new();
+    for m in mcap::MessageStream::new(&bytes).expect("MCAP") {
+        let m = m.expect("a message");
+        let schema = m.channel.schema.as_ref().expect("a schema");
+        assert_eq!(m.channel.message_encoding, "json");
+        assert_eq!(schema.encoding, "jsonschema");
+        schemas.insert(m.channel.topic.clone(), schema.name.clone());
+        if let Some(c) = Channel::from_topic(&m.channel.topic).filter(|c| c.is_view()) {
+            let v: serde_json::Value = serde_json::from_slice(&m.data).expect("JSON");
+            if let Err(e) = foxglove::check(c.schema_name(), &v) {
+                panic!("{}: {e}", c.topic());
+            }
+        }
+    }
+    for (topic, schema) in [
+        ("/tf", "foxglove.FrameTransforms"),
+        ("/scene", "foxglove.SceneUpdate"),
+        ("/plan/path", "foxglove.PosesInFrame"),
+        ("/base/path", "foxglove.PosesInFrame"),
+        ("/heatmaps/grid", "foxglove.Grid"),
+        ("/events/log", "foxglove.Log"),
+        ("/camera/frame", "foxglove.RawImage"),
+    ] {
+        assert_eq!(
+            schemas.get(topic).map(String::as_str),
+            Some(schema),
+            "{topic}"
+        );
+    }
+}
+
 /// The replay of a log from before the operator's enable existed gives one itself: its
-/// executive arms, plans and drives as the recorded one did.
-fn replays(path: &str) {
+/// executive arms, plans and drives as the recorded one did. Returns the replay's log (in the
+/// temporary folder returned with it).
+fn replays(path: &str) -> (tempfile::TempDir, PathBuf) {
     let log = MissionLog::read(&repo(path)).expect("the old log reads");
     let dir = tempfile::tempdir().expect("a temporary folder");
     let out = dir.path().join("old.replay.mcap");
@@ -107,11 +163,7 @@ fn replays(path: &str) {
         },
     )
     .expect("the replay runs");
-    let behaviour = log
-        .messages
-        .iter()
-        .filter(|m| !m.channel.topic().starts_with("/timing/"))
-        .count();
+    let behaviour = log.messages.iter().filter(|m| compared(m)).count();
     assert_eq!(report.recorded, behaviour);
     assert!(report.replayed > 0);
     assert!(report.sim_s > 1.0, "{report:?}");
@@ -130,4 +182,5 @@ fn replays(path: &str) {
         replayed.metadata[MISSION_METADATA]["map"],
         log.metadata[MISSION_METADATA]["map"]
     );
+    (dir, out)
 }

@@ -18,7 +18,7 @@ use clap::Parser;
 use grop_onboard::deployment::CanSpec;
 use grop_onboard::mission_log::live::{LiveConfig, LiveServer};
 use grop_onboard::mission_log::{
-    LogWriter, MISSION_METADATA, Overflow, RECORDER_METADATA, Recorder, RecorderConfig,
+    LogWriter, MISSION_METADATA, Overflow, RECORDER_METADATA, Recorder, RecorderConfig, Views,
     WriterConfig,
 };
 
@@ -149,6 +149,12 @@ fn main() -> anyhow::Result<()> {
             camera_period_ns: (args.camera_period_s * 1e9) as u64,
         },
     )?;
+    // The channels in Foxglove's well-known schemas need the map and the robot file.
+    match (deployment.load_scene(), deployment.load_robot()) {
+        (Ok(scene), Ok(robot)) => recorder = recorder.with_views(Views::new(scene, &robot)),
+        (Err(e), _) => log::warn!("grop-recorder: no Foxglove views (the map: {e})"),
+        (_, Err(e)) => log::warn!("grop-recorder: no Foxglove views (the robot file: {e})"),
+    }
     let live = start_live(&args, simulated)?;
     if let Some(server) = &live {
         recorder = recorder.with_live(server.feed());

@@ -51,6 +51,8 @@ pub struct ExecutivePorts {
     requests: TopicPublisher<ReplanRequestMsg>,
     loads: TopicPublisher<grop_ipc::LoadRequestMsg>,
     health: TopicPublisher<HeartbeatMsg>,
+    /// Each revolution of the range sensor, for the mission log (nothing onboard reads it).
+    scan: TopicPublisher<grop_ipc::ScanMsg>,
     /// Plans, fixes and the planner's heartbeats, from the deployment's publishers only.
     inputs: ExecutiveInputs,
 }
@@ -67,6 +69,7 @@ impl ExecutivePorts {
             requests: node.publisher().map_err(e)?,
             loads: node.publisher().map_err(e)?,
             health: node.publisher().map_err(e)?,
+            scan: node.publisher().map_err(e)?,
             inputs: ExecutiveInputs::open(node, sources).map_err(e)?,
         })
     }
@@ -543,6 +546,12 @@ impl<D: BaseDevice, A: ArmDevice> Executive<D, A> {
             &mut g.scan,
         ) {
             g.scans += 1;
+            let (seq, stamp_ns) = (g.scans, u64::try_from(now.as_nanos()).unwrap_or(u64::MAX));
+            let _ = self.ports.scan.publish_with(|m| {
+                m.seq = seq;
+                m.stamp_ns = stamp_ns;
+                m.set_points(g.scan.iter());
+            });
             // The scan as the sensor saw it, to the worker for the alignment to the map.
             if !self.align_in_flight {
                 let mut points = [[0.0f32; 2]; ALIGN_POINTS];

@@ -49,11 +49,26 @@ pub enum Channel {
     LoadRequest,
     /// `operator/enable` (the operator's enable; since `log_format` 3).
     OperatorEnable,
+    /// `/tf`: the frames (`foxglove.FrameTransforms`; a view, since `log_format` 4).
+    Tf,
+    /// `/scene`: the room, furniture, targets, tray (`foxglove.SceneUpdate`; a view, since 4).
+    Scene,
+    /// `/plan/path`: the plan's route (`foxglove.PosesInFrame`; a view, since 4).
+    PlannedPath,
+    /// `/base/path`: the route driven so far (`foxglove.PosesInFrame`; a view, since 4).
+    DrivenPath,
+    /// `/heatmaps/grid`: Psi's heatmaps over the floor (`foxglove.Grid`; a view, since 4).
+    HeatmapGrid,
+    /// `/events/log`: the events as log messages (`foxglove.Log`; a view, since 4).
+    EventLog,
+    /// `/scan`: the range sensor's revolutions as the executive's collision monitor took them,
+    /// one per second (`foxglove.PointCloud` in `base_link`; since 4).
+    Scan,
 }
 
 impl Channel {
     /// All channels, in channel-id order.
-    pub const ALL: [Channel; 14] = [
+    pub const ALL: [Channel; 21] = [
         Channel::CameraFrame,
         Channel::Heatmaps,
         Channel::TaskPlan,
@@ -68,7 +83,30 @@ impl Channel {
         Channel::DecisionTiming,
         Channel::LoadRequest,
         Channel::OperatorEnable,
+        Channel::Tf,
+        Channel::Scene,
+        Channel::PlannedPath,
+        Channel::DrivenPath,
+        Channel::HeatmapGrid,
+        Channel::EventLog,
+        Channel::Scan,
     ];
+
+    /// The channels in Foxglove's well-known schemas that the recorder derives from the others
+    /// (`super::views`): a replay compares the messages they come from, not them.
+    pub const VIEWS: [Channel; 6] = [
+        Channel::Tf,
+        Channel::Scene,
+        Channel::PlannedPath,
+        Channel::DrivenPath,
+        Channel::HeatmapGrid,
+        Channel::EventLog,
+    ];
+
+    /// Whether the recorder derives this channel from the others (see [`Channel::VIEWS`]).
+    pub fn is_view(self) -> bool {
+        Channel::VIEWS.contains(&self)
+    }
 
     /// The MCAP topic.
     pub fn topic(self) -> &'static str {
@@ -87,6 +125,13 @@ impl Channel {
             Channel::DecisionTiming => "/timing/decision",
             Channel::LoadRequest => "/load/request",
             Channel::OperatorEnable => "/operator/enable",
+            Channel::Tf => "/tf",
+            Channel::Scene => "/scene",
+            Channel::PlannedPath => "/plan/path",
+            Channel::DrivenPath => "/base/path",
+            Channel::HeatmapGrid => "/heatmaps/grid",
+            Channel::EventLog => "/events/log",
+            Channel::Scan => "/scan",
         }
     }
 
@@ -112,6 +157,12 @@ impl Channel {
             Channel::DecisionTiming => "grop.DecisionTiming",
             Channel::LoadRequest => "grop.LoadRequest",
             Channel::OperatorEnable => "grop.OperatorEnable",
+            Channel::Tf => "foxglove.FrameTransforms",
+            Channel::Scene => "foxglove.SceneUpdate",
+            Channel::PlannedPath | Channel::DrivenPath => "foxglove.PosesInFrame",
+            Channel::HeatmapGrid => "foxglove.Grid",
+            Channel::EventLog => "foxglove.Log",
+            Channel::Scan => "foxglove.PointCloud",
         }
     }
 
@@ -241,6 +292,13 @@ impl Channel {
                 "Wall-clock time the planner took for a plan (a measurement, not behaviour)",
                 json!({"plan_id": int, "decision_us": int}),
             ),
+            Channel::Tf
+            | Channel::Scene
+            | Channel::PlannedPath
+            | Channel::DrivenPath
+            | Channel::HeatmapGrid
+            | Channel::EventLog
+            | Channel::Scan => return super::foxglove::json_schema(self.schema_name()),
         };
         json!({
             "$schema": "https://json-schema.org/draft/2020-12/schema",
@@ -313,6 +371,31 @@ struct RawImage {
     metres_per_px: f64,
     left_x_m: f64,
     top_y_m: f64,
+}
+
+/// A range sensor's revolution as a `foxglove.PointCloud` in `base_link`: x, y, z float32 per
+/// point (z 0.1 m: the points lie on the floor plane, drawn just above it).
+pub fn encode_scan(m: &grop_ipc::ScanMsg) -> Vec<u8> {
+    use super::foxglove::{FLOAT32, PackedElementField, PointCloud, Pose, Time};
+    let mut data = Vec::with_capacity(grop_ipc::SCAN_BINS * 12);
+    for [x, y] in m.points() {
+        for v in [x, y, 0.1f32] {
+            data.extend_from_slice(&v.to_le_bytes());
+        }
+    }
+    let field = |name: &str, offset: u32| PackedElementField {
+        name: name.to_owned(),
+        offset,
+        kind: FLOAT32,
+    };
+    to_vec(&PointCloud {
+        timestamp: Time::from_ns(m.stamp_ns),
+        frame_id: "base_link".to_owned(),
+        pose: Pose::default(),
+        point_stride: 12,
+        fields: vec![field("x", 0), field("y", 4), field("z", 8)],
+        data: BASE64.encode(&data),
+    })
 }
 
 /// A camera frame (its checked image only).
@@ -782,6 +865,27 @@ mod tests {
             assert!(s["properties"].as_object().is_some_and(|p| !p.is_empty()));
             assert_eq!(Channel::from_topic(c.topic()), Some(c));
         }
+    }
+
+    #[test]
+    fn a_scan_is_a_foxglove_point_cloud_of_its_nearest_returns() {
+        let mut m = grop_ipc::ScanMsg {
+            seq: 1,
+            stamp_ns: 1_500_000_000,
+            points_m: [[0.0; 2]; grop_ipc::SCAN_BINS],
+        };
+        m.set_points([[1.0, 0.0], [0.0, 2.0], [0.0, 2.5]].into_iter());
+        let v: Value = serde_json::from_slice(&encode_scan(&m)).unwrap();
+        assert_eq!(
+            crate::mission_log::foxglove::check(Channel::Scan.schema_name(), &v),
+            Ok(())
+        );
+        assert_eq!(v["timestamp"], json!({"sec": 1, "nsec": 500_000_000}));
+        let data = BASE64.decode(v["data"].as_str().unwrap()).unwrap();
+        let f = |i: usize| f32::from_le_bytes(data[4 * i..4 * i + 4].try_into().unwrap());
+        assert_eq!(data.len(), 2 * 12);
+        assert_eq!((f(0), f(1), f(2)), (1.0, 0.0, 0.1));
+        assert_eq!((f(3), f(4)), (0.0, 2.0));
     }
 
     #[test]

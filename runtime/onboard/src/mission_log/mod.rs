@@ -2,12 +2,15 @@
 //! ROS 2 tooling read), written by one recorder process (`grop-recorder`).
 //!
 //! - [`codec`]: each topic as JSON with a JSON Schema (the camera as `foxglove.RawImage`);
+//! - [`views`]: channels in Foxglove's well-known schemas ([`foxglove`]) that the recorder
+//!   derives from the others: frames, scene, paths, heatmaps over the floor, events as log;
 //! - [`writer`]: a bounded queue in front of an MCAP writer thread (zstd chunks);
 //! - [`recorder`]: what the recorder does each cycle: drain every topic and the CAN bus;
 //! - [`reader`]: reading a log back, and the digest that compares two runs;
 //! - [`live`]: the live view, a Foxglove WebSocket server fed by the recorder.
 
 pub mod codec;
+pub mod foxglove;
 pub mod live;
 pub mod reader;
 pub mod recorder;
@@ -20,6 +23,8 @@ pub use reader::{LoggedMessage, MissionLog, digest};
 pub use recorder::{Recorder, RecorderConfig};
 
 pub mod replay;
+pub mod views;
+pub use views::Views;
 pub use writer::{LogWriter, Overflow, WriterConfig, WriterSummary};
 
 /// Name of the metadata record that says which format the log is written in (`log_format`), and
@@ -30,7 +35,7 @@ pub const LOG_METADATA: &str = "grop.log";
 /// a channel added, removed or renamed. A log without it is version 1. The reader and
 /// `grop replay` read every version from [`OLDEST_LOG_FORMAT`] up to this one (docs/logs.md has
 /// the history of the versions).
-pub const LOG_FORMAT: u32 = 3;
+pub const LOG_FORMAT: u32 = 4;
 /// The oldest format version this build reads.
 pub const OLDEST_LOG_FORMAT: u32 = 1;
 

@@ -2,7 +2,9 @@
 //! on every topic and every frame on the CAN bus, encode it and queue it for the writer. Camera
 //! frames are kept at the rate the planner uses them: one per `camera_period`, plus any frame a
 //! plan or heatmaps name that was not kept (the newest few frames wait in a small ring for that),
-//! so a replay always has the frame each decision saw.
+//! so a replay always has the frame each decision saw. The lidar's revolutions are kept at one
+//! a second. With [`Recorder::with_views`] it also logs the channels in Foxglove's well-known
+//! schemas that it derives from what it took ([`Views`]), after each drain's messages.
 
 use std::collections::VecDeque;
 
@@ -15,7 +17,11 @@ use grop_ipc::{
 use super::LogError;
 use super::codec::{self, Channel};
 use super::live::LiveFeed;
+use super::views::Views;
 use super::writer::{LogWriter, WriterSummary};
+
+/// Time between two logged revolutions of the range sensor (ns of their stamps).
+const SCAN_PERIOD_NS: u64 = 1_000_000_000;
 
 /// Frames kept back in case a plan names them.
 const CAMERA_RING: usize = 4;
@@ -48,6 +54,15 @@ struct Subs {
     events: TopicSubscriber<EventMsg>,
     health: TopicSubscriber<HeartbeatMsg>,
     enables: TopicSubscriber<grop_ipc::OperatorEnableMsg>,
+    scans: TopicSubscriber<grop_ipc::ScanMsg>,
+}
+
+/// A message taken from a topic: its sort key, its encoding and a copy.
+struct Taken<T> {
+    stamp: u64,
+    seq: u64,
+    data: Vec<u8>,
+    msg: T,
 }
 
 /// A frame not (yet) logged.
@@ -65,12 +80,15 @@ pub struct Recorder {
     writer: LogWriter,
     config: RecorderConfig,
     last_camera_stamp: Option<u64>,
+    last_scan_stamp: Option<u64>,
     held: VecDeque<HeldFrame>,
     /// Recently logged frame ids.
     logged_frames: VecDeque<u64>,
     receive_errors: u64,
     /// The live view's feed, when it runs.
     live: Option<LiveFeed>,
+    /// The channels in Foxglove's well-known schemas, when the recorder has the map.
+    views: Option<Views>,
 }
 
 fn port(e: impl std::fmt::Display) -> LogError {
@@ -99,21 +117,31 @@ impl Recorder {
                 events: node.subscriber().map_err(port)?,
                 health: node.subscriber().map_err(port)?,
                 enables: node.subscriber().map_err(port)?,
+                scans: node.subscriber().map_err(port)?,
             },
             bus,
             writer,
             config,
             last_camera_stamp: None,
+            last_scan_stamp: None,
             held: VecDeque::with_capacity(CAMERA_RING),
             logged_frames: VecDeque::with_capacity(16),
             receive_errors: 0,
             live: None,
+            views: None,
         })
     }
 
     /// Also offers every message it logs to a live view (never waiting: see [`LiveFeed`]).
     pub fn with_live(mut self, live: LiveFeed) -> Self {
         self.live = Some(live);
+        self
+    }
+
+    /// Also derives and logs the channels in Foxglove's well-known schemas (`/tf`, `/scene`,
+    /// paths, the heatmaps' grid, events as log messages; see [`Views`]).
+    pub fn with_views(mut self, views: Views) -> Self {
+        self.views = Some(views);
         self
     }
 
@@ -166,20 +194,35 @@ impl Recorder {
     /// Takes what `sub` has, encoded, in a canonical order: by stamp, then sequence number,
     /// then payload. iceoryx2 hands out the samples of several publishers connection by
     /// connection, in an order that depends on which process connected first; sorting makes
-    /// the log the same for the same mission.
-    fn take<T: Topic>(
+    /// the log the same for the same mission. Each message comes with its copy, for the views.
+    fn take<T: Topic + Copy>(
         sub: &TopicSubscriber<T>,
         errors: &mut u64,
         key: fn(&T) -> (u64, u64),
         encode: fn(&T) -> Vec<u8>,
-    ) -> Vec<(u64, u64, Vec<u8>)> {
+    ) -> Vec<Taken<T>> {
         let mut out = Vec::new();
         Self::drain_topic(sub, errors, |m| {
             let (stamp, seq) = key(m);
-            out.push((stamp, seq, encode(m)));
+            out.push(Taken {
+                stamp,
+                seq,
+                data: encode(m),
+                msg: *m,
+            });
         });
-        out.sort();
+        out.sort_by(|a, b| (a.stamp, a.seq, &a.data).cmp(&(b.stamp, b.seq, &b.data)));
         out
+    }
+
+    /// Queues a batch taken by [`Recorder::take`] on `channel`; returns how many.
+    fn emit_batch<T>(&mut self, channel: Channel, now_ns: u64, batch: &mut [Taken<T>]) -> usize {
+        let n = batch.len();
+        for t in batch.iter_mut() {
+            let data = std::mem::take(&mut t.data);
+            Self::emit(&self.writer, &mut self.live, channel, now_ns, t.stamp, data);
+        }
+        n
     }
 
     /// Takes everything published since the last call and queues it with log time `now_ns`.
@@ -191,96 +234,97 @@ impl Recorder {
         }
         let e = &mut self.receive_errors;
         // Inputs of the onboard processes first, then what they made of them.
-        let batches = [
-            (
-                Channel::BasePose,
-                Self::take(
-                    &self.subs.poses,
-                    e,
-                    |m| (m.stamp_ns, m.seq),
-                    codec::encode_base_pose,
-                ),
-            ),
-            (
-                Channel::Health,
-                Self::take(
-                    &self.subs.health,
-                    e,
-                    |m| (m.stamp_ns, m.seq),
-                    codec::encode_health,
-                ),
-            ),
-            (
-                Channel::OperatorEnable,
-                Self::take(
-                    &self.subs.enables,
-                    e,
-                    |m| (m.stamp_ns, m.seq),
-                    codec::encode_enable,
-                ),
-            ),
-            (
-                Channel::ArmIo,
-                Self::take(
-                    &self.subs.arm_io,
-                    e,
-                    |m| (m.stamp_ns, m.seq),
-                    codec::encode_arm_io,
-                ),
-            ),
-            (
-                Channel::ArmState,
-                Self::take(
-                    &self.subs.arm,
-                    e,
-                    |m| (m.stamp_ns, m.seq),
-                    codec::encode_arm_state,
-                ),
-            ),
-            (
-                Channel::BaseState,
-                Self::take(
-                    &self.subs.base,
-                    e,
-                    |m| (m.stamp_ns, m.seq),
-                    codec::encode_base_state,
-                ),
-            ),
-            (
-                Channel::PlanRequest,
-                Self::take(
-                    &self.subs.requests,
-                    e,
-                    |m| (m.stamp_ns, m.request_id),
-                    codec::encode_plan_request,
-                ),
-            ),
-            (
-                Channel::LoadRequest,
-                Self::take(
-                    &self.subs.loads,
-                    e,
-                    |m| (m.stamp_ns, m.request_id),
-                    codec::encode_load_request,
-                ),
-            ),
-            (
-                Channel::Events,
-                Self::take(
-                    &self.subs.events,
-                    e,
-                    |m| (m.stamp_ns, m.seq),
-                    codec::encode_event,
-                ),
-            ),
-        ];
-        let mut n = 0;
-        for (channel, batch) in batches {
-            n += batch.len();
-            for (stamp, _, data) in batch {
-                Self::emit(&self.writer, &mut self.live, channel, now_ns, stamp, data);
+        let mut poses = Self::take(
+            &self.subs.poses,
+            e,
+            |m| (m.stamp_ns, m.seq),
+            codec::encode_base_pose,
+        );
+        let mut health = Self::take(
+            &self.subs.health,
+            e,
+            |m| (m.stamp_ns, m.seq),
+            codec::encode_health,
+        );
+        let mut enables = Self::take(
+            &self.subs.enables,
+            e,
+            |m| (m.stamp_ns, m.seq),
+            codec::encode_enable,
+        );
+        let mut arm_io = Self::take(
+            &self.subs.arm_io,
+            e,
+            |m| (m.stamp_ns, m.seq),
+            codec::encode_arm_io,
+        );
+        let mut arm = Self::take(
+            &self.subs.arm,
+            e,
+            |m| (m.stamp_ns, m.seq),
+            codec::encode_arm_state,
+        );
+        let mut base = Self::take(
+            &self.subs.base,
+            e,
+            |m| (m.stamp_ns, m.seq),
+            codec::encode_base_state,
+        );
+        let mut requests = Self::take(
+            &self.subs.requests,
+            e,
+            |m| (m.stamp_ns, m.request_id),
+            codec::encode_plan_request,
+        );
+        let mut loads = Self::take(
+            &self.subs.loads,
+            e,
+            |m| (m.stamp_ns, m.request_id),
+            codec::encode_load_request,
+        );
+        let mut events = Self::take(
+            &self.subs.events,
+            e,
+            |m| (m.stamp_ns, m.seq),
+            codec::encode_event,
+        );
+        // One revolution of the range sensor per second (of ten).
+        let mut scans = Self::take(
+            &self.subs.scans,
+            e,
+            |m| (m.stamp_ns, m.seq),
+            codec::encode_scan,
+        );
+        let last_scan = &mut self.last_scan_stamp;
+        scans.retain(|t| {
+            let due = last_scan.is_none_or(|last| t.stamp >= last + SCAN_PERIOD_NS);
+            if due {
+                *last_scan = Some(t.stamp);
+            }
+            due
+        });
+        if let Some(views) = &mut self.views {
+            for t in &arm {
+                views.arm_state(&t.msg);
+            }
+            for t in &base {
+                views.base_state(&t.msg);
+            }
+            for t in &events {
+                views.event(&t.msg);
             }
         }
+        let mut n = 0;
+        n += self.emit_batch(Channel::BasePose, now_ns, &mut poses);
+        n += self.emit_batch(Channel::Health, now_ns, &mut health);
+        n += self.emit_batch(Channel::OperatorEnable, now_ns, &mut enables);
+        n += self.emit_batch(Channel::ArmIo, now_ns, &mut arm_io);
+        n += self.emit_batch(Channel::ArmState, now_ns, &mut arm);
+        n += self.emit_batch(Channel::BaseState, now_ns, &mut base);
+        n += self.emit_batch(Channel::PlanRequest, now_ns, &mut requests);
+        n += self.emit_batch(Channel::LoadRequest, now_ns, &mut loads);
+        n += self.emit_batch(Channel::Events, now_ns, &mut events);
+        n += self.emit_batch(Channel::Scan, now_ns, &mut scans);
         if let Some(bus) = self.bus.as_mut() {
             loop {
                 match bus.try_recv() {
@@ -308,6 +352,7 @@ impl Recorder {
         let mut named: Vec<u64> = Vec::new();
         let mut plans: Vec<(u64, Vec<u8>, Vec<u8>)> = Vec::new();
         let mut maps: Vec<(u64, Vec<u8>)> = Vec::new();
+        let views = &mut self.views;
         n += Self::drain_topic(&self.subs.plans, &mut self.receive_errors, |m| {
             named.push(m.source_frame_id);
             plans.push((
@@ -315,10 +360,16 @@ impl Recorder {
                 codec::encode_task_plan(m),
                 codec::encode_decision_timing(m),
             ));
+            if let Some(v) = views.as_mut() {
+                v.plan(m);
+            }
         });
         n += Self::drain_topic(&self.subs.heatmaps, &mut self.receive_errors, |m| {
             named.push(m.source_frame_id);
             maps.push((m.stamp_ns, codec::encode_heatmaps(m)));
+            if let Some(v) = views.as_mut() {
+                v.heatmaps(m);
+            }
         });
         for id in named {
             self.log_held_frame(id);
@@ -350,6 +401,12 @@ impl Recorder {
                 stamp,
                 timing,
             );
+        }
+        // The views last: they follow from what came before.
+        if let Some(views) = &mut self.views {
+            for (channel, stamp, data) in views.take(now_ns) {
+                Self::emit(&self.writer, &mut self.live, channel, now_ns, stamp, data);
+            }
         }
         n
     }

@@ -164,6 +164,15 @@ pub struct ReplayOptions {
 }
 
 /// Whether a logged message is something the two nodes made (compared) rather than an input.
+/// Whether a replay compares this message: behaviour only. Not the wall-clock measurements
+/// under `/timing/`, not the views in Foxglove's schemas (`Channel::is_view`), which the
+/// recorder derives from the compared messages (and which logs before `log_format` 4 lack), and
+/// not the range sensor's revolutions (`/scan`): the sensor's packets are not in the log, so the
+/// replayed executive runs without it.
+pub fn compared(m: &LoggedMessage) -> bool {
+    !m.channel.topic().starts_with("/timing/") && !m.channel.is_view() && m.channel != Channel::Scan
+}
+
 fn is_world_input(m: &LoggedMessage) -> bool {
     match m.channel {
         Channel::CameraFrame | Channel::BasePose | Channel::OperatorEnable => true,
@@ -560,7 +569,8 @@ fn replay_in(
                 RecorderConfig {
                     camera_period_ns: (camera_period_s * 1e9) as u64,
                 },
-            )?;
+            )?
+            .with_views(super::Views::new(scene.clone(), &robot));
             clock.wait_turn();
             let mut deadline = clock.now();
             while !clock.is_lost() {
@@ -664,9 +674,8 @@ fn replay_in(
             return Err(ReplayError::stage("feeding the recorded inputs", e));
         }
         let replayed = MissionLog::read(&out)?;
-        let behaviour = |m: &&LoggedMessage| !m.channel.topic().starts_with("/timing/");
-        let a: Vec<&LoggedMessage> = log.messages.iter().filter(behaviour).collect();
-        let b: Vec<&LoggedMessage> = replayed.messages.iter().filter(behaviour).collect();
+        let a: Vec<&LoggedMessage> = log.messages.iter().filter(|m| compared(m)).collect();
+        let b: Vec<&LoggedMessage> = replayed.messages.iter().filter(|m| compared(m)).collect();
         let show = |m: Option<&&LoggedMessage>| {
             m.map(|m| {
                 (

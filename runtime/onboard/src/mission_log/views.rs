@@ -1,0 +1,1055 @@
+//! The mission in Foxglove's well-known schemas, derived by the recorder from the messages it
+//! already takes, so that Foxglove's 3D, Image, Plot and Log panels show it with no
+//! configuration (docs/logs.md, "Foxglove's panels"). Nothing here is new information: every
+//! view is a function of the logged messages before it, the map and the robot file; a replay
+//! compares the messages they come from, not the views.
+//!
+//! - `/tf` (`foxglove.FrameTransforms`, 20 Hz of the base's state): `map -> odom -> base_link ->
+//!   arm_base -> arm_link1 .. arm_link6`. `map -> base_link` is the executive's estimate; `odom`
+//!   is the base's dead reckoning, integrated here from the measured speeds of `/base/state`
+//!   (the executive publishes its estimate only), so `map -> odom` is the correction the
+//!   localisation applied to it; the arm links are the UR5e's DH frames at the joint angles of
+//!   `/arm/state`, on the robot file's mount.
+//! - `/scene` (`foxglove.SceneUpdate`, whenever something in it changes): the room, the tables,
+//!   the chairs, the loading station, each object's target labelled with its state (pending,
+//!   planned, on tray, placed, failed), the plan's standing spots with their F, the objects
+//!   on the tray and the robot's body (attached to its frames).
+//! - `/plan/path` (`foxglove.PosesInFrame`, per plan): the base's pose when the plan arrived,
+//!   then each navigate step's goal.
+//! - `/base/path` (`foxglove.PosesInFrame`, at most every 2 s): the route driven so far (the
+//!   estimate, a pose every 10 cm or 0.2 rad).
+//! - `/heatmaps/grid` (`foxglove.Grid`, per heatmaps message): Psi's success maps of every
+//!   location of a decision over the floor, one float32 `success` per 6.25 cm cell (the most of
+//!   the locations that cover it; NaN where none does).
+//! - `/events/log` (`foxglove.Log`, per event): each event with a level, its source as the name.
+
+use base64::Engine as _;
+use base64::engine::general_purpose::STANDARD as BASE64;
+use grop_ipc::{
+    ArmStateMsg, BaseStateMsg, EventKind, EventMsg, HeatmapsMsg, TaskPlanMsg, TaskStepKind,
+};
+use nalgebra::Isometry3;
+use serde::Serialize;
+use world::view::{CELL_SIZE_M, world_to_cell};
+use world::{RobotConfig, Scene, Side};
+
+use super::codec::Channel;
+use super::foxglove::{
+    ArrowPrimitive, Color, CubePrimitive, CylinderPrimitive, FLOAT32, FrameTransform,
+    FrameTransforms, Grid, LinePrimitive, Log, PackedElementField, Pose, PosesInFrame, Quaternion,
+    SceneEntity, SceneUpdate, SpherePrimitive, TextPrimitive, Time, Vector2, level, rgba, v3,
+};
+use crate::localisation::{PlanarPose, wrap};
+
+/// The fixed frame.
+pub const MAP: &str = "map";
+/// The base's dead-reckoning frame.
+pub const ODOM: &str = "odom";
+/// The base (centre of its footprint, on the floor).
+pub const BASE: &str = "base_link";
+/// The arm's base (under joint 1).
+pub const ARM_BASE: &str = "arm_base";
+/// The arm's DH frames 1..=6 (`arm_link6` is the tool flange).
+pub const ARM_LINKS: [&str; 6] = [
+    "arm_link1",
+    "arm_link2",
+    "arm_link3",
+    "arm_link4",
+    "arm_link5",
+    "arm_link6",
+];
+
+/// Time between two `/tf` messages (ns of the base's stamps).
+const TF_PERIOD_NS: u64 = 50_000_000;
+/// Time between two `/base/path` messages (ns).
+const PATH_PERIOD_NS: u64 = 2_000_000_000;
+/// A driven pose is kept when the base moved this far (m) ...
+const PATH_STEP_M: f64 = 0.1;
+/// ... or turned this much (rad) since the last one.
+const PATH_STEP_RAD: f64 = 0.2;
+
+/// What the views know of an object.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum ObjectState {
+    Pending,
+    Planned,
+    OnTray,
+    Placed,
+    Failed,
+}
+
+impl ObjectState {
+    fn name(self) -> &'static str {
+        match self {
+            Self::Pending => "pending",
+            Self::Planned => "planned",
+            Self::OnTray => "on tray",
+            Self::Placed => "placed",
+            Self::Failed => "failed",
+        }
+    }
+
+    fn color(self) -> Color {
+        match self {
+            Self::Pending => rgba(150, 150, 150, 1.0),
+            Self::Planned => rgba(70, 130, 220, 1.0),
+            Self::OnTray => rgba(240, 170, 30, 1.0),
+            Self::Placed => rgba(40, 170, 60, 1.0),
+            Self::Failed => rgba(210, 40, 40, 1.0),
+        }
+    }
+}
+
+/// A step of a plan, as far as the views need it.
+#[derive(Debug, Clone, Copy)]
+struct Step {
+    kind: Option<TaskStepKind>,
+    object: u32,
+    load_mask: u64,
+    pose: PlanarPose,
+    feasibility: f64,
+}
+
+/// The recorder's Foxglove views (see the module docs). Fed every message of the topics it
+/// reads in the order the recorder logs them; [`Views::take`] gives what to log.
+pub struct Views {
+    scene: Scene,
+    mount: Isometry3<f64>,
+    body: [f64; 3],
+    arm: ur5e_kin::Ur5e,
+    joints: Option<[f64; 6]>,
+    last_tf_ns: Option<u64>,
+    /// The dead-reckoned pose, its stamp and the speeds measured then.
+    odom: Option<(PlanarPose, u64, f64, f64)>,
+    estimate: Option<PlanarPose>,
+    driven: Vec<PlanarPose>,
+    driven_changed: bool,
+    last_path_ns: Option<u64>,
+    plans: Vec<(u64, Vec<Step>)>,
+    objects: Vec<ObjectState>,
+    on_tray: u64,
+    scene_changed: bool,
+    out: Vec<(Channel, u64, Vec<u8>)>,
+}
+
+fn to_vec<T: Serialize>(value: &T) -> Vec<u8> {
+    // Plain structs of numbers and strings: serialising into a Vec cannot fail.
+    serde_json::to_vec(value).unwrap_or_default()
+}
+
+/// A length for a view: to 0.1 mm (the views are for eyes; short numbers keep the log small).
+fn mm(x: f64) -> f64 {
+    (x * 1e4).round() / 1e4
+}
+
+/// A quaternion component for a view, to 1e-6.
+fn unit(x: f64) -> f64 {
+    (x * 1e6).round() / 1e6
+}
+
+fn rounded(q: Quaternion) -> Quaternion {
+    Quaternion {
+        x: unit(q.x),
+        y: unit(q.y),
+        z: unit(q.z),
+        w: unit(q.w),
+    }
+}
+
+/// A pose on the floor for a view (rounded).
+fn floor_pose(p: &PlanarPose) -> Pose {
+    Pose {
+        position: v3(mm(p.x_m), mm(p.y_m), 0.0),
+        orientation: rounded(Quaternion::yaw(p.yaw_rad)),
+    }
+}
+
+fn transform(stamp: Time, parent: &str, child: &str, iso: &Isometry3<f64>) -> FrameTransform {
+    let t = iso.translation.vector;
+    let q = iso.rotation.into_inner().coords;
+    FrameTransform {
+        timestamp: stamp,
+        parent_frame_id: parent.to_owned(),
+        child_frame_id: child.to_owned(),
+        translation: v3(mm(t.x), mm(t.y), mm(t.z)),
+        rotation: rounded(Quaternion {
+            x: q.x,
+            y: q.y,
+            z: q.z,
+            w: q.w,
+        }),
+    }
+}
+
+fn planar_transform(stamp: Time, parent: &str, child: &str, p: &PlanarPose) -> FrameTransform {
+    let pose = floor_pose(p);
+    FrameTransform {
+        timestamp: stamp,
+        parent_frame_id: parent.to_owned(),
+        child_frame_id: child.to_owned(),
+        translation: pose.position,
+        rotation: pose.orientation,
+    }
+}
+
+fn cube(x: f64, y: f64, z: f64, yaw: f64, size: [f64; 3], color: Color) -> CubePrimitive {
+    CubePrimitive {
+        pose: Pose::planar(x, y, z, yaw),
+        size: v3(size[0], size[1], size[2]),
+        color,
+    }
+}
+
+fn label(x: f64, y: f64, z: f64, text: String) -> TextPrimitive {
+    TextPrimitive {
+        pose: Pose::planar(x, y, z, 0.0),
+        billboard: true,
+        font_size: 14.0,
+        scale_invariant: true,
+        color: rgba(255, 255, 255, 1.0),
+        text,
+    }
+}
+
+impl Views {
+    /// Views of a mission on `scene` with `robot`.
+    pub fn new(scene: Scene, robot: &RobotConfig) -> Self {
+        let objects = vec![ObjectState::Pending; scene.targets.len()];
+        Self {
+            mount: robot.place.mount.base_from_arm(),
+            body: [
+                robot.footprint.length_m,
+                robot.footprint.width_m,
+                robot.footprint.body_height_m,
+            ],
+            arm: ur5e_kin::Ur5e::default(),
+            scene,
+            joints: None,
+            last_tf_ns: None,
+            odom: None,
+            estimate: None,
+            driven: Vec::new(),
+            driven_changed: false,
+            last_path_ns: None,
+            plans: Vec::new(),
+            objects,
+            on_tray: 0,
+            scene_changed: true,
+            out: Vec::new(),
+        }
+    }
+
+    /// The arm's state: its joints move the arm's frames.
+    pub fn arm_state(&mut self, m: &ArmStateMsg) {
+        if m.joints_rad.iter().all(|q| q.is_finite()) {
+            self.joints = Some(m.joints_rad);
+        }
+    }
+
+    /// The base's state: the estimate, the dead reckoning, `/tf` and the driven path.
+    pub fn base_state(&mut self, m: &BaseStateMsg) {
+        let estimate = PlanarPose::new(m.x_m, m.y_m, m.yaw_rad);
+        if !estimate.is_finite() {
+            return;
+        }
+        self.estimate = Some(estimate);
+        let (speed, yaw_rate) = if m.speed_mps.is_finite() && m.yaw_rate_radps.is_finite() {
+            (m.speed_mps, m.yaw_rate_radps)
+        } else {
+            (0.0, 0.0)
+        };
+        let odom = match self.odom {
+            None => PlanarPose::default(),
+            Some((p, stamp, v, w)) => {
+                let dt = m.stamp_ns.saturating_sub(stamp) as f64 * 1e-9;
+                let mid = p.yaw_rad + 0.5 * w * dt;
+                PlanarPose::new(
+                    p.x_m + v * dt * mid.cos(),
+                    p.y_m + v * dt * mid.sin(),
+                    wrap(p.yaw_rad + w * dt),
+                )
+            }
+        };
+        self.odom = Some((odom, m.stamp_ns, speed, yaw_rate));
+        if self
+            .last_tf_ns
+            .is_none_or(|t| m.stamp_ns >= t + TF_PERIOD_NS)
+        {
+            self.last_tf_ns = Some(m.stamp_ns);
+            self.push_tf(m.stamp_ns, &estimate, &odom);
+        }
+        let moved = self.driven.last().is_none_or(|last| {
+            last.distance_m(&estimate) >= PATH_STEP_M
+                || wrap(last.yaw_rad - estimate.yaw_rad).abs() >= PATH_STEP_RAD
+        });
+        if moved {
+            self.driven.push(estimate);
+            self.driven_changed = true;
+        }
+        if self.driven_changed
+            && self
+                .last_path_ns
+                .is_none_or(|t| m.stamp_ns >= t + PATH_PERIOD_NS)
+        {
+            self.last_path_ns = Some(m.stamp_ns);
+            self.driven_changed = false;
+            let path = PosesInFrame {
+                timestamp: Time::from_ns(m.stamp_ns),
+                frame_id: MAP.to_owned(),
+                poses: self.driven.iter().map(floor_pose).collect(),
+            };
+            self.out
+                .push((Channel::DrivenPath, m.stamp_ns, to_vec(&path)));
+        }
+    }
+
+    fn push_tf(&mut self, stamp_ns: u64, estimate: &PlanarPose, odom: &PlanarPose) {
+        let t = Time::from_ns(stamp_ns);
+        let map_from_odom = estimate.compose(&odom.inverse());
+        let mut transforms = vec![
+            planar_transform(t, MAP, ODOM, &map_from_odom),
+            planar_transform(t, ODOM, BASE, odom),
+            transform(t, BASE, ARM_BASE, &self.mount),
+        ];
+        if let Some(q) = self.joints {
+            let frames = self.arm.frames(&q).frames;
+            let mut parent = ARM_BASE;
+            for (i, child) in ARM_LINKS.iter().enumerate() {
+                let local = frames[i].inverse() * frames[i + 1];
+                transforms.push(transform(t, parent, child, &local));
+                parent = child;
+            }
+        }
+        self.out.push((
+            Channel::Tf,
+            stamp_ns,
+            to_vec(&FrameTransforms { transforms }),
+        ));
+    }
+
+    fn step(&self, plan_id: u64, index: u32) -> Option<&Step> {
+        self.plans
+            .iter()
+            .rev()
+            .find(|(id, _)| *id == plan_id)
+            .and_then(|(_, steps)| steps.get(index as usize))
+    }
+
+    fn set(&mut self, object: u32, state: ObjectState) {
+        if let Some(s) = self.objects.get_mut(object as usize) {
+            if *s != state {
+                *s = state;
+                self.scene_changed = true;
+            }
+        }
+    }
+
+    /// A task plan: its path, and the objects it plans.
+    pub fn plan(&mut self, m: &TaskPlanMsg) {
+        let n = (m.step_count as usize).min(m.steps.len());
+        let steps: Vec<Step> = m.steps[..n]
+            .iter()
+            .map(|s| Step {
+                kind: s.kind().ok(),
+                object: s.object_index,
+                load_mask: s.load_mask,
+                pose: PlanarPose::new(s.x_m, s.y_m, s.yaw_rad),
+                feasibility: s.feasibility,
+            })
+            .collect();
+        let mut poses: Vec<Pose> = self.estimate.iter().map(floor_pose).collect();
+        for s in &steps {
+            if s.kind == Some(TaskStepKind::Navigate) && s.pose.is_finite() {
+                poses.push(floor_pose(&s.pose));
+            }
+            if s.kind == Some(TaskStepKind::Unload) {
+                let on_tray = self.on_tray & (1u64 << (s.object % 64)) != 0;
+                let state = self.objects.get(s.object as usize).copied();
+                if matches!(state, Some(ObjectState::Pending | ObjectState::Failed)) && !on_tray {
+                    self.set(s.object, ObjectState::Planned);
+                }
+            }
+        }
+        let path = PosesInFrame {
+            timestamp: Time::from_ns(m.stamp_ns),
+            frame_id: MAP.to_owned(),
+            poses,
+        };
+        self.out
+            .push((Channel::PlannedPath, m.stamp_ns, to_vec(&path)));
+        // The newest plans only: an event names a recent one.
+        if self.plans.len() == 16 {
+            self.plans.remove(0);
+        }
+        self.plans.push((m.plan_id, steps));
+        self.scene_changed = true;
+    }
+
+    /// An event: a log message, and what it changes in the scene.
+    pub fn event(&mut self, m: &EventMsg) {
+        let kind = m.kind().ok();
+        let step = self.step(m.plan_id, m.step_index).copied();
+        match (kind, step) {
+            (Some(EventKind::Loaded), Some(s)) => {
+                self.on_tray |= s.load_mask;
+                for i in 0..self.objects.len().min(64) {
+                    if s.load_mask & (1u64 << i) != 0 {
+                        self.set(i as u32, ObjectState::OnTray);
+                    }
+                }
+                self.scene_changed = true;
+            }
+            (Some(EventKind::UnloadSucceeded), Some(s)) => {
+                self.on_tray &= !(1u64 << (s.object % 64));
+                self.set(s.object, ObjectState::Placed);
+                self.scene_changed = true;
+            }
+            (Some(EventKind::UnloadFailed), Some(s)) => self.set(s.object, ObjectState::Failed),
+            _ => {}
+        }
+        let level = match kind {
+            Some(
+                EventKind::LinkLost
+                | EventKind::BaseFault
+                | EventKind::ArmStopped
+                | EventKind::PeerLost
+                | EventKind::MissionAborted
+                | EventKind::Collision,
+            )
+            | None => level::ERROR,
+            Some(
+                EventKind::UnloadFailed
+                | EventKind::StaleInput
+                | EventKind::TrayMismatch
+                | EventKind::NotPlanned
+                | EventKind::Obstacle
+                | EventKind::InputRefused,
+            ) => level::WARNING,
+            Some(_) => level::INFO,
+        };
+        let kind_name = kind.map_or_else(|| format!("kind {}", m.kind), |k| format!("{k:?}"));
+        let detail = m.detail().unwrap_or("<invalid utf-8>");
+        let log = Log {
+            timestamp: Time::from_ns(m.stamp_ns),
+            level,
+            message: if detail.is_empty() {
+                format!("{kind_name} (plan {}, step {})", m.plan_id, m.step_index)
+            } else {
+                format!(
+                    "{kind_name}: {detail} (plan {}, step {})",
+                    m.plan_id, m.step_index
+                )
+            },
+            name: match m.source {
+                1 => "planner",
+                2 => "executive",
+                3 => "world",
+                _ => "grop",
+            }
+            .to_owned(),
+            file: String::new(),
+            line: 0,
+        };
+        self.out.push((Channel::EventLog, m.stamp_ns, to_vec(&log)));
+    }
+
+    /// Psi's heatmaps: one grid over the floor.
+    pub fn heatmaps(&mut self, m: &HeatmapsMsg) {
+        let Ok(locations) = m.locations() else {
+            return;
+        };
+        if locations.is_empty() {
+            return;
+        }
+        // A crop is HEATMAP_COLS cells along the table, centred on the target, and
+        // HEATMAP_ROWS cells away from its centre line.
+        let half = 0.5 * grop_ipc::HEATMAP_COLS as f64 * CELL_SIZE_M;
+        let depth = grop_ipc::HEATMAP_ROWS as f64 * CELL_SIZE_M;
+        let x0 = locations
+            .iter()
+            .map(|l| l.target_m[0] - half)
+            .fold(f64::INFINITY, f64::min);
+        let x1 = locations
+            .iter()
+            .map(|l| l.target_m[0] + half)
+            .fold(f64::NEG_INFINITY, f64::max);
+        let near = locations.iter().any(|l| l.side >= 0);
+        let far = locations.iter().any(|l| l.side < 0);
+        let table_y = world::scene::TABLE_CENTER_Y_M;
+        let y0 = if near { table_y - depth } else { table_y };
+        let y1 = if far { table_y + depth } else { table_y };
+        if !x0.is_finite() || !x1.is_finite() || x1 <= x0 {
+            return;
+        }
+        let columns = ((x1 - x0) / CELL_SIZE_M).ceil() as usize;
+        let rows = ((y1 - y0) / CELL_SIZE_M).ceil() as usize;
+        let mut data = Vec::with_capacity(rows * columns * 4);
+        for r in 0..rows {
+            let y = y0 + (r as f64 + 0.5) * CELL_SIZE_M;
+            for c in 0..columns {
+                let x = x0 + (c as f64 + 0.5) * CELL_SIZE_M;
+                let mut best = f32::NAN;
+                for l in locations {
+                    let side = if l.side >= 0 { Side::Near } else { Side::Far };
+                    if let Some((row, col)) = world_to_cell(l.target_m[0], side, x, y) {
+                        let v = l.values[row * grop_ipc::HEATMAP_COLS + col];
+                        if best.is_nan() || v > best {
+                            best = v;
+                        }
+                    }
+                }
+                data.extend_from_slice(&best.to_le_bytes());
+            }
+        }
+        let grid = Grid {
+            timestamp: Time::from_ns(m.stamp_ns),
+            frame_id: MAP.to_owned(),
+            pose: Pose::planar(x0, y0, 0.01, 0.0),
+            column_count: columns as u32,
+            cell_size: Vector2 {
+                x: CELL_SIZE_M,
+                y: CELL_SIZE_M,
+            },
+            row_stride: (columns * 4) as u32,
+            cell_stride: 4,
+            fields: vec![PackedElementField {
+                name: "success".to_owned(),
+                offset: 0,
+                kind: FLOAT32,
+            }],
+            data: BASE64.encode(&data),
+        };
+        self.out
+            .push((Channel::HeatmapGrid, m.stamp_ns, to_vec(&grid)));
+    }
+
+    /// The scene as it is now (every entity, so that the newest message alone is the scene).
+    fn scene_update(&self, stamp_ns: u64) -> SceneUpdate {
+        let t = Time::from_ns(stamp_ns);
+        let mut entities = self.furniture(t);
+        entities.extend(self.objects(t));
+        entities.extend(self.robot(t));
+        SceneUpdate {
+            deletions: Vec::new(),
+            entities,
+        }
+    }
+
+    /// The room, the tables, the chairs and the loading station.
+    fn furniture(&self, t: Time) -> Vec<SceneEntity> {
+        let s = &self.scene;
+        let mut entities = Vec::new();
+        let mut room = SceneEntity::new(t, MAP, "room".to_owned());
+        let r = &s.room;
+        room.lines.push(LinePrimitive {
+            kind: 1,
+            pose: Pose::default(),
+            thickness: 0.05,
+            scale_invariant: false,
+            points: vec![
+                v3(r.x_min_m, r.y_min_m, 0.0),
+                v3(r.x_max_m, r.y_min_m, 0.0),
+                v3(r.x_max_m, r.y_max_m, 0.0),
+                v3(r.x_min_m, r.y_max_m, 0.0),
+            ],
+            color: rgba(200, 200, 200, 1.0),
+            colors: Vec::new(),
+            indices: Vec::new(),
+        });
+        entities.push(room);
+        let wood = rgba(150, 110, 70, 1.0);
+        let mut tables = SceneEntity::new(t, MAP, "tables".to_owned());
+        let lt = &s.loading_table;
+        let h = lt.top_height_m;
+        tables.cubes.push(cube(
+            lt.center_x_m,
+            lt.center_y_m,
+            0.5 * h,
+            0.0,
+            [lt.length_m, lt.depth_m, h],
+            wood,
+        ));
+        let bt = &s.banquet_table;
+        for f in bt.segment_footprints() {
+            let h = bt.top_height_m;
+            tables.cubes.push(cube(
+                f.center_x_m,
+                f.center_y_m,
+                0.5 * h,
+                f.yaw_rad(),
+                [2.0 * f.half_length_m, 2.0 * f.half_width_m, h],
+                wood,
+            ));
+        }
+        entities.push(tables);
+        let mut chairs = SceneEntity::new(t, MAP, "chairs".to_owned());
+        for c in &s.chairs {
+            chairs.cubes.push(cube(
+                c.x_m,
+                c.y_m,
+                0.5 * c.height_m,
+                c.yaw_rad,
+                [c.depth_m, c.width_m, c.height_m],
+                rgba(70, 90, 140, 1.0),
+            ));
+        }
+        entities.push(chairs);
+        let mut station = SceneEntity::new(t, MAP, "loading_station".to_owned());
+        let st = &s.loading_station;
+        station.cylinders.push(CylinderPrimitive {
+            pose: Pose::planar(st.x_m, st.y_m, 0.005, 0.0),
+            size: v3(0.3, 0.3, 0.01),
+            bottom_scale: 1.0,
+            top_scale: 1.0,
+            color: rgba(240, 170, 30, 0.6),
+        });
+        station
+            .texts
+            .push(label(st.x_m, st.y_m, 0.3, "loading station".to_owned()));
+        entities.push(station);
+        entities
+    }
+
+    /// Each object's target with its state, and the newest plan's standing spots.
+    fn objects(&self, t: Time) -> Vec<SceneEntity> {
+        let mut entities = Vec::new();
+        for (i, target) in self.scene.targets.iter().enumerate() {
+            let state = self.objects.get(i).copied().unwrap_or(ObjectState::Pending);
+            let mut e = SceneEntity::new(t, MAP, format!("target/{i}"));
+            e.cylinders.push(CylinderPrimitive {
+                pose: Pose::planar(target.x_m, target.y_m, target.z_m, 0.0),
+                size: v3(0.08, 0.08, 0.12),
+                bottom_scale: 1.0,
+                top_scale: 1.0,
+                color: state.color(),
+            });
+            e.texts.push(label(
+                target.x_m,
+                target.y_m,
+                target.z_m + 0.25,
+                format!("{i} {}", state.name()),
+            ));
+            e.metadata.push(super::foxglove::KeyValuePair {
+                key: "state".to_owned(),
+                value: state.name().to_owned(),
+            });
+            entities.push(e);
+        }
+        // The newest plan's standing spots (where each object is unloaded from), with their F.
+        let mut spots = SceneEntity::new(t, MAP, "standing_spots".to_owned());
+        if let Some((_, steps)) = self.plans.last() {
+            let mut last_goal: Option<PlanarPose> = None;
+            for st in steps {
+                match st.kind {
+                    Some(TaskStepKind::Navigate) => last_goal = Some(st.pose),
+                    Some(TaskStepKind::Unload) => {
+                        if let Some(g) = last_goal.filter(PlanarPose::is_finite) {
+                            spots.arrows.push(ArrowPrimitive {
+                                pose: Pose::planar(g.x_m, g.y_m, 0.02, g.yaw_rad),
+                                shaft_length: 0.25,
+                                shaft_diameter: 0.04,
+                                head_length: 0.12,
+                                head_diameter: 0.1,
+                                color: rgba(70, 130, 220, 1.0),
+                            });
+                            let f = if st.feasibility.is_finite() {
+                                st.feasibility
+                            } else {
+                                0.0
+                            };
+                            spots
+                                .texts
+                                .push(label(g.x_m, g.y_m, 0.35, format!("F {f:.2}")));
+                        }
+                    }
+                    _ => {}
+                }
+            }
+        }
+        entities.push(spots);
+        entities
+    }
+
+    /// The robot's body and the objects on its tray, which move with its frames.
+    fn robot(&self, t: Time) -> Vec<SceneEntity> {
+        let mut entities = Vec::new();
+        let mut body = SceneEntity::new(t, BASE, "robot/base".to_owned());
+        body.frame_locked = true;
+        let [l, w, hb] = self.body;
+        body.cubes.push(cube(
+            0.0,
+            0.0,
+            0.5 * hb,
+            0.0,
+            [l, w, hb],
+            rgba(190, 190, 200, 0.9),
+        ));
+        let mut slot = 0.0;
+        for i in 0..self.objects.len().min(64) {
+            if self.on_tray & (1u64 << i) != 0 {
+                body.cubes.push(cube(
+                    -0.25 * l,
+                    -0.3 * w + slot,
+                    hb + 0.04,
+                    0.0,
+                    [0.07, 0.07, 0.08],
+                    ObjectState::OnTray.color(),
+                ));
+                slot += 0.1;
+            }
+        }
+        entities.push(body);
+        for link in ARM_LINKS {
+            let mut e = SceneEntity::new(t, link, format!("robot/{link}"));
+            e.frame_locked = true;
+            e.spheres.push(SpherePrimitive {
+                pose: Pose::default(),
+                size: v3(0.09, 0.09, 0.09),
+                color: rgba(90, 160, 200, 1.0),
+            });
+            entities.push(e);
+        }
+        entities
+    }
+
+    /// What to log now (log time `now_ns`), in the order it was made; the scene last when it
+    /// changed.
+    pub fn take(&mut self, now_ns: u64) -> Vec<(Channel, u64, Vec<u8>)> {
+        if self.scene_changed {
+            self.scene_changed = false;
+            let scene = self.scene_update(now_ns);
+            self.out.push((Channel::Scene, now_ns, to_vec(&scene)));
+        }
+        std::mem::take(&mut self.out)
+    }
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failure panics with its message
+mod tests {
+    use super::*;
+    use crate::mission_log::foxglove::{check, fields, json_schema};
+    use grop_ipc::{
+        HEATMAP_COLS, HEATMAP_ROWS, LocationHeatmap, MAX_HEATMAPS, MAX_TASK_STEPS, TableSide,
+        TaskStep,
+    };
+    use serde_json::Value;
+
+    fn base(seq: u64, t_ns: u64, x: f64) -> BaseStateMsg {
+        BaseStateMsg {
+            seq,
+            stamp_ns: t_ns,
+            x_m: x,
+            y_m: 1.0,
+            yaw_rad: 0.5,
+            speed_mps: 0.5,
+            yaw_rate_radps: 0.1,
+            commanded_speed_mps: 0.5,
+            commanded_yaw_rate_radps: 0.1,
+            mode: 1,
+            fault_bits: 0,
+            link_up: 1,
+            watchdog_stopped: 0,
+            reserved: [0; 6],
+        }
+    }
+
+    fn plan(scene: &Scene) -> TaskPlanMsg {
+        let t = scene.targets[0];
+        let mut m = TaskPlanMsg {
+            plan_id: 1,
+            stamp_ns: 10,
+            source_frame_id: 1,
+            answers_request: 1,
+            utility: 1.0,
+            feasibility: 0.8,
+            cost_s: 10.0,
+            reward: 10.0,
+            object_count: 1,
+            step_count: 0,
+            decision_us: 0,
+            steps: [TaskStep::navigate(0.0, 0.0, 0.0, 0.0); MAX_TASK_STEPS],
+        };
+        m.set_steps(&[
+            TaskStep::navigate(0.0, 1.0, 0.0, 1.0),
+            TaskStep::load(1, 0.0, 1.0),
+            TaskStep::navigate(t.x_m, 5.3, 1.57, 5.0),
+            TaskStep::unload(0, TableSide::Near, t.as_array(), [t.x_m, 5.3, 1.57], 0.8),
+        ])
+        .unwrap();
+        m
+    }
+
+    /// Every view of a short made-up mission: the frames, the scene before and after, both
+    /// paths, the grid and the events.
+    fn views_of_a_mission() -> Vec<(Channel, u64, Vec<u8>)> {
+        let mut scene = Scene::empty_paper_room();
+        scene.targets.push(world::UnloadTarget::on_center_line(2.0));
+        scene.chairs.push(world::Chair::new(2.0, 5.2, 1.57));
+        let mut v = Views::new(scene.clone(), &RobotConfig::default());
+        let mut out = v.take(0);
+        v.arm_state(&ArmStateMsg {
+            joints_rad: [0.1, -1.2, 1.0, -1.4, -1.57, 0.0],
+            ..arm_msg()
+        });
+        for i in 0..200u64 {
+            v.base_state(&base(i, i * 20_000_000, 0.01 * i as f64));
+        }
+        v.plan(&plan(&scene));
+        let mut maps = Box::new(HeatmapsMsg {
+            stamp_ns: 10,
+            source_frame_id: 1,
+            count: 2,
+            reserved: 0,
+            locations: [LocationHeatmap {
+                object_index: 0,
+                side: 1,
+                target_m: scene.targets[0].as_array(),
+                feasibility: 0.8,
+                values: [0.25; HEATMAP_ROWS * HEATMAP_COLS],
+            }; MAX_HEATMAPS],
+        });
+        maps.locations[1].side = -1;
+        v.heatmaps(&maps);
+        let mut loaded = EventMsg::new(EventKind::Loaded, 20, "objects 0x1 on the tray");
+        loaded.plan_id = 1;
+        loaded.step_index = 1;
+        loaded.source = 2;
+        v.event(&loaded);
+        let mut placed = EventMsg::new(EventKind::UnloadSucceeded, 30, "");
+        placed.plan_id = 1;
+        placed.step_index = 3;
+        v.event(&placed);
+        out.extend(v.take(4_000_000_000));
+        out
+    }
+
+    fn arm_msg() -> ArmStateMsg {
+        ArmStateMsg {
+            seq: 1,
+            stamp_ns: 0,
+            joints_rad: [0.0; 6],
+            joint_speeds_radps: [0.0; 6],
+            flange_pose: [0.0; 6],
+            gripper_opening_m: 0.1,
+            safety: 1,
+            robot_mode: 7,
+            program_running: 1,
+            connected: 1,
+            object_held: 0,
+            reserved: [0; 5],
+        }
+    }
+
+    #[test]
+    fn every_view_is_its_foxglove_schema_field_for_field() {
+        let out = views_of_a_mission();
+        for c in Channel::VIEWS {
+            let n = out.iter().filter(|(ch, _, _)| *ch == c).count();
+            assert!(n > 0, "no {} message", c.topic());
+        }
+        for (c, _, data) in &out {
+            let v: Value = serde_json::from_slice(data).unwrap();
+            if let Err(e) = check(c.schema_name(), &v) {
+                panic!("{}: {e}\n{v}", c.topic());
+            }
+        }
+    }
+
+    #[test]
+    fn the_views_say_what_happened() {
+        let out = views_of_a_mission();
+        let last = |c: Channel| -> Value {
+            let (_, _, d) = out.iter().rev().find(|(ch, _, _)| *ch == c).unwrap();
+            serde_json::from_slice(d).unwrap()
+        };
+        // The frame tree, down to the flange.
+        let tf = last(Channel::Tf);
+        let pairs: Vec<(String, String)> = tf["transforms"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|t| {
+                (
+                    t["parent_frame_id"].as_str().unwrap().to_owned(),
+                    t["child_frame_id"].as_str().unwrap().to_owned(),
+                )
+            })
+            .collect();
+        assert_eq!(pairs[0], ("map".into(), "odom".into()));
+        assert_eq!(pairs[1], ("odom".into(), "base_link".into()));
+        assert_eq!(pairs[2], ("base_link".into(), "arm_base".into()));
+        assert_eq!(pairs[8], ("arm_link5".into(), "arm_link6".into()));
+        // map -> odom -> base_link is the estimate.
+        let t = |i: usize, k: &str| tf["transforms"][i]["translation"][k].as_f64().unwrap();
+        let q = |i: usize| {
+            tf["transforms"][i]["rotation"]["z"]
+                .as_f64()
+                .unwrap()
+                .asin()
+                * 2.0
+        };
+        let (mx, my, myaw) = (t(0, "x"), t(0, "y"), q(0));
+        let (ox, oy) = (t(1, "x"), t(1, "y"));
+        let x = mx + myaw.cos() * ox - myaw.sin() * oy;
+        let y = my + myaw.sin() * ox + myaw.cos() * oy;
+        // The base state of that instant had x = 0.01 * its index.
+        let stamp = &tf["transforms"][0]["timestamp"];
+        let ns = stamp["sec"].as_u64().unwrap() * 1_000_000_000 + stamp["nsec"].as_u64().unwrap();
+        let want = 0.01 * (ns / 20_000_000) as f64;
+        assert!(
+            (x - want).abs() < 1e-3 && (y - 1.0).abs() < 1e-3,
+            "{x} {y} {want}"
+        );
+        // The object was placed: its target says so, and it left the tray.
+        let scene = last(Channel::Scene);
+        let entity = |id: &str| -> Value {
+            scene["entities"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .find(|e| e["id"] == id)
+                .cloned()
+                .unwrap_or_else(|| panic!("no entity {id}"))
+        };
+        assert_eq!(entity("target/0")["texts"][0]["text"], "0 placed");
+        assert_eq!(entity("target/0")["metadata"][0]["value"], "placed");
+        assert_eq!(entity("robot/base")["cubes"].as_array().unwrap().len(), 1);
+        assert_eq!(
+            entity("standing_spots")["arrows"].as_array().unwrap().len(),
+            1
+        );
+        // The first scene, before anything happened: pending.
+        let (_, _, first) = out.iter().find(|(c, _, _)| *c == Channel::Scene).unwrap();
+        assert!(String::from_utf8_lossy(first).contains("\"0 pending\""));
+        // The plan's path: the pose then, and two goals.
+        assert_eq!(
+            last(Channel::PlannedPath)["poses"]
+                .as_array()
+                .unwrap()
+                .len(),
+            3
+        );
+        // The grid: both sides of the table, 2 m either way of the target and 2 m deep.
+        let grid = last(Channel::HeatmapGrid);
+        assert_eq!(grid["column_count"], 64);
+        let data = BASE64.decode(grid["data"].as_str().unwrap()).unwrap();
+        assert_eq!(data.len(), 64 * 64 * 4);
+        assert_eq!(&data[..4], &0.25f32.to_le_bytes());
+        // Events, with their level and source.
+        let log = last(Channel::EventLog);
+        assert_eq!(log["level"], level::INFO);
+        let (_, _, loaded) = out
+            .iter()
+            .find(|(c, _, d)| {
+                *c == Channel::EventLog && String::from_utf8_lossy(d).contains("Loaded")
+            })
+            .unwrap();
+        assert!(String::from_utf8_lossy(loaded).contains("\"name\":\"executive\""));
+    }
+
+    /// Foxglove's field names, written out by hand from its schemas (the `.proto` files of
+    /// `foxglove-schemas-protobuf` 0.4.0), independently of [`fields`]: a misspelt or missing
+    /// field in the table fails here, and through the table, in every view.
+    #[test]
+    fn the_schema_table_has_foxglove_s_field_names() {
+        let expected: &[(&str, &str)] = &[
+            ("FrameTransforms", "transforms"),
+            (
+                "FrameTransform",
+                "timestamp parent_frame_id child_frame_id translation rotation",
+            ),
+            ("SceneUpdate", "deletions entities"),
+            (
+                "SceneEntity",
+                "timestamp frame_id id lifetime frame_locked metadata arrows cubes spheres \
+                 cylinders lines triangles texts models",
+            ),
+            ("SceneEntityDeletion", "timestamp type id"),
+            ("CubePrimitive", "pose size color"),
+            ("SpherePrimitive", "pose size color"),
+            (
+                "CylinderPrimitive",
+                "pose size bottom_scale top_scale color",
+            ),
+            (
+                "LinePrimitive",
+                "type pose thickness scale_invariant points color colors indices",
+            ),
+            (
+                "TextPrimitive",
+                "pose billboard font_size scale_invariant color text",
+            ),
+            (
+                "ArrowPrimitive",
+                "pose shaft_length shaft_diameter head_length head_diameter color",
+            ),
+            ("PosesInFrame", "timestamp frame_id poses"),
+            ("Pose", "position orientation"),
+            ("Quaternion", "x y z w"),
+            ("Color", "r g b a"),
+            (
+                "Grid",
+                "timestamp frame_id pose column_count cell_size row_stride cell_stride fields data",
+            ),
+            ("PackedElementField", "name offset type"),
+            ("Log", "timestamp level message name file line"),
+            (
+                "RawImage",
+                "timestamp frame_id width height encoding step data",
+            ),
+        ];
+        for (schema, names) in expected {
+            let table: Vec<&str> = fields(schema).unwrap().iter().map(|(f, _)| *f).collect();
+            let names: Vec<&str> = names.split_whitespace().collect();
+            assert_eq!(table, names, "foxglove.{schema}");
+            // The JSON Schema advertised lists the same.
+            let s = json_schema(&format!("foxglove.{schema}"));
+            let props: Vec<&str> = s["properties"]
+                .as_object()
+                .unwrap()
+                .keys()
+                .map(String::as_str)
+                .collect();
+            let mut sorted = names.clone();
+            sorted.sort_unstable();
+            assert_eq!(props, sorted, "foxglove.{schema}'s JSON Schema");
+        }
+    }
+
+    #[test]
+    fn a_wrong_field_is_named() {
+        let ok = serde_json::json!({
+            "timestamp": {"sec": 1, "nsec": 2}, "level": 2, "message": "m", "name": "n",
+            "file": "", "line": 0
+        });
+        assert_eq!(check("foxglove.Log", &ok), Ok(()));
+        let mut renamed = ok.clone();
+        let level = renamed.as_object_mut().unwrap().remove("level").unwrap();
+        renamed["lvl"] = level;
+        assert_eq!(
+            check("foxglove.Log", &renamed),
+            Err("Log.lvl: not a field of foxglove.Log".to_owned())
+        );
+        let mut typed = ok.clone();
+        typed["line"] = serde_json::json!("0");
+        assert!(
+            check("foxglove.Log", &typed)
+                .unwrap_err()
+                .starts_with("Log.line")
+        );
+        let mut time = ok;
+        time["timestamp"] = serde_json::json!({"sec": 1});
+        assert!(
+            check("foxglove.Log", &time)
+                .unwrap_err()
+                .starts_with("Log.timestamp")
+        );
+        let pose = serde_json::json!({"position": {"x": 0, "y": 0}, "orientation":
+            {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0}});
+        assert_eq!(
+            check("foxglove.Pose", &pose),
+            Err("Pose.position.z: missing".to_owned())
+        );
+    }
+}
