@@ -26,6 +26,7 @@ mod cmd_soak;
 mod common;
 mod mission_end;
 mod picture;
+mod shards;
 
 /// GROP: visually grounded task-and-motion planning for a mobile manipulator setting dinner tables.
 #[derive(Parser, Debug)]
