@@ -136,13 +136,6 @@ pub(crate) fn model_path(p: &std::path::Path) -> anyhow::Result<PathBuf> {
     reason = "a command's steps in order: arguments, the suite, the missions, the report"
 )]
 pub fn run(args: Args) -> anyhow::Result<()> {
-    if let Some(name) = &args.suite {
-        let dir = hil_world::suite::suite_dir(name)?;
-        return crate::cmd_hil_suite::run(&args, name, &dir);
-    }
-    if let Some(dir) = &args.scenes {
-        return crate::cmd_hil_suite::run(&args, &dir.display().to_string(), dir);
-    }
     let run_started = Instant::now();
     let method = MethodKind::parse(&args.method)
         .with_context(|| format!("unknown --method {:?}", args.method))?;

@@ -92,6 +92,9 @@ fn main() -> std::process::ExitCode {
         Command::Eval(a) => cmd_eval::run(a),
         Command::Bench(a) => cmd_bench::run(a),
         Command::BenchSettings(a) => cmd_bench_settings::run(a),
+        Command::Hil(a) if a.suite.is_some() || a.scenes.is_some() => {
+            cmd_hil_suite::run_command(&a)
+        }
         Command::Hil(a) => cmd_hil::run(a),
         Command::Replay(a) => cmd_replay::run(a),
         Command::Latency(a) => cmd_latency::run(a),
