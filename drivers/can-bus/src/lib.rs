@@ -27,7 +27,7 @@ pub mod conformance;
 mod error;
 mod frame;
 mod memory;
-pub mod os;
+mod os;
 mod peer_table;
 mod socketcan_bus;
 mod virtual_bus;

@@ -1,5 +1,7 @@
-//! The reading of iceoryx2's service-open errors, shared by the virtual bus and the runtime's
-//! iceoryx2 services (grop-ipc). The waits and the monotonic clock are `grop_clock`'s.
+//! The virtual bus's reading of iceoryx2's service-open errors (a full bus, another build's
+//! bus). The runtime's iceoryx2 services read theirs in `grop_ipc` (the one-way dependencies of
+//! docs/architecture.md keep the runtime off this driver). The waits and the monotonic clock
+//! are `grop_clock`'s.
 
 /// Why an iceoryx2 publish-subscribe service could not be opened, in the terms callers report.
 #[derive(Debug, Clone, PartialEq, Eq)]

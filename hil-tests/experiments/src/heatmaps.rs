@@ -174,19 +174,9 @@ pub fn evaluate_heatmaps(
                 .iter()
                 .flat_map(|t| Side::BOTH.map(|side| render_crop(scene, t.x_m, side)))
                 .collect();
-            let queries: Vec<FeasibilityQuery<'_>> = crops
-                .iter()
-                .enumerate()
-                .map(|(i, crop)| FeasibilityQuery {
-                    scene,
-                    robot: &robot,
-                    target: chunk[i / 2].as_array(),
-                    side: Side::BOTH[i % 2],
-                    crop,
-                })
-                .collect();
-            let mut out = vec![Heatmap::zeros(); queries.len()];
-            evaluator.evaluate(&queries, &mut out)?;
+            let targets: Vec<[f64; 3]> = chunk.iter().map(|t| t.as_array()).collect();
+            let mut out = vec![Heatmap::zeros(); crops.len()];
+            evaluate_crops(scene, &robot, &targets, &crops, evaluator, &mut out)?;
             for pair in out.chunks(2) {
                 per_scene.push([pair[0].clone(), pair[1].clone()]);
             }

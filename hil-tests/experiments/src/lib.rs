@@ -47,12 +47,12 @@ pub use workload::*;
 use std::path::{Path, PathBuf};
 
 use planner::costs::GridTravelTime;
-use planner::feasibility::{FeasibilityError, FeasibilityEvaluator, FeasibilityQuery};
+use planner::feasibility::{FeasibilityError, FeasibilityEvaluator};
 use planner::grop_plus::retry_goal;
 use planner::methods::{
     MethodKind, PlanError, PlannedTask, Planner, PlannerConfig, TaskMotionPlanner,
 };
-use planner::problem::{CANDIDATE_CELLS, TaskProblem, candidate_cells};
+use planner::problem::{CANDIDATE_CELLS, TaskProblem, candidate_cells, evaluate_crops};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;

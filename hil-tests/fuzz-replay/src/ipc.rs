@@ -14,7 +14,7 @@ use grop_ipc::{
     CameraFrameMsg, EVENT_DETAIL_CAPACITY, EventMsg, HeartbeatMsg, HeatmapsMsg, LoadRequestMsg,
     MAX_HEATMAPS, MAX_TASK_STEPS, ReplanRequestMsg, TaskPlanMsg, TaskStep, Topic,
 };
-use world::camera::{FrameLayout, OverheadCamera, PixelFormat, cut_view};
+use world::camera::cut_view;
 use world::view::{CROP_COLS, CROP_ROWS, Side};
 
 /// Message types for which every bit pattern is a valid value.
@@ -518,22 +518,10 @@ pub fn camera_frame(data: &[u8]) {
         image[..n].copy_from_slice(&pixels_in[..n]);
     }
     let pixels = &image[..];
-    // What the planner node builds from the header (runtime/onboard/src/planner_node.rs).
-    let format = match header.pixel_format() {
-        Ok(grop_ipc::PixelFormat::Rgb8) => PixelFormat::Rgb8,
-        Ok(grop_ipc::PixelFormat::Mono8) => PixelFormat::Mono8,
+    // What the planner node builds from the header (runtime/onboard/src/planner_node/single_trip.rs, `CameraFrameHeader::layout`).
+    let layout = match header.layout() {
+        Ok(layout) => layout,
         Err(e) => panic!("a checked header has no pixel format: {e}"),
-    };
-    let layout = FrameLayout {
-        camera: OverheadCamera {
-            width_px: header.width_px,
-            height_px: header.height_px,
-            metres_per_px: header.metres_per_px,
-            left_x_m: header.left_x_m,
-            top_y_m: header.top_y_m,
-        },
-        format,
-        row_stride_bytes: header.row_stride_bytes as usize,
     };
     assert_eq!(layout.check(pixels.len()), Ok(()), "{header:?}");
     let sane = (1e-3..=1.0).contains(&header.metres_per_px)

@@ -16,11 +16,11 @@ use std::time::Instant;
 
 use anyhow::Context;
 use planner::costs::{GridTravelTime, LegCache, MemoTravel};
-use planner::feasibility::{FcnEvaluator, FeasibilityEvaluator, FeasibilityQuery};
+use planner::feasibility::{FcnEvaluator, FeasibilityEvaluator};
 use planner::methods::{
     MethodKind, PlannedTask, Planner, PlannerConfig, SearchMode, TaskMotionPlanner,
 };
-use planner::problem::{TaskProblem, side_of_location};
+use planner::problem::{TaskProblem, evaluate_crops, side_of_location};
 use planner::task::{PlanningTable, optimise};
 use world::camera::{FrameLayout, OverheadCamera, cut_views, render_frame};
 use world::nav::OccupancyGrid;
@@ -134,18 +134,7 @@ fn camera_problem(
     }
     cut_views(pixels, layout, &views[..m], &mut crops[..m])?;
     let t1 = Instant::now();
-    let queries: Vec<FeasibilityQuery<'_>> = crops[..m]
-        .iter()
-        .enumerate()
-        .map(|(i, crop)| FeasibilityQuery {
-            scene,
-            robot,
-            target: targets[i / 2],
-            side: side_of_location(i),
-            crop,
-        })
-        .collect();
-    fcn.evaluate(&queries, &mut heatmaps[..m])?;
+    evaluate_crops(scene, robot, targets, &crops[..m], fcn, &mut heatmaps[..m])?;
     let t2 = Instant::now();
     let problem = TaskProblem::from_heatmaps(scene, robot, targets, &heatmaps[..m]);
     let t3 = Instant::now();

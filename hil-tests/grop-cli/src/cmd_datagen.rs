@@ -165,7 +165,7 @@ fn run_shard(
     let data = trial_sim::datagen::simulate_shard(&cfg, shard, bar, cfg.write_trials_csv)?;
     trial_sim::datagen::write_shard_tasks(&data, &dir.path().join(SHARD_TASKS))?;
     let total = cfg.tasks().1.len();
-    let manifest = crate::cmd_merge::manifest(
+    let manifest = crate::shards::manifest(
         "datagen",
         shard,
         args.seed,

@@ -273,7 +273,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         let dir = ShardDir::create(&args.out_dir, shard)
             .with_context(|| format!("creating the shard folder in {}", args.out_dir.display()))?;
         experiments::write_records_exact(&dir.path().join(RECORDS_FILE), &records)?;
-        let manifest = crate::cmd_merge::manifest(
+        let manifest = crate::shards::manifest(
             "eval",
             shard,
             args.seed,

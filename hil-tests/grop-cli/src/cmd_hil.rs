@@ -136,13 +136,6 @@ pub(crate) fn model_path(p: &std::path::Path) -> anyhow::Result<PathBuf> {
     reason = "a command's steps in order: arguments, the suite, the missions, the report"
 )]
 pub fn run(args: Args) -> anyhow::Result<()> {
-    if let Some(name) = &args.suite {
-        let dir = hil_world::suite::suite_dir(name)?;
-        return crate::cmd_hil_suite::run(&args, name, &dir);
-    }
-    if let Some(dir) = &args.scenes {
-        return crate::cmd_hil_suite::run(&args, &dir.display().to_string(), dir);
-    }
     let run_started = Instant::now();
     let method = MethodKind::parse(&args.method)
         .with_context(|| format!("unknown --method {:?}", args.method))?;
@@ -273,7 +266,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         write_rows_exact(&dir.path().join(ROWS_FILE), &rows)?;
         let failed: String = failures.iter().map(|f| format!("{f}\n")).collect();
         std::fs::write(dir.path().join(FAILURES_FILE), failed).context("writing failures")?;
-        let manifest = crate::cmd_merge::manifest(
+        let manifest = crate::shards::manifest(
             "hil",
             shard,
             args.seed,
@@ -458,7 +451,7 @@ pub fn merge(set: &[(PathBuf, ShardManifest)], out: &std::path::Path) -> anyhow:
         failures += failed.lines().filter(|l| !l.is_empty()).count();
         for r in &part {
             let task_dir = format!("task-{:03}", r.task);
-            crate::cmd_merge::copy_tree(&dir.join(&task_dir), &staged.path().join(&task_dir))?;
+            crate::shards::copy_tree(&dir.join(&task_dir), &staged.path().join(&task_dir))?;
         }
         shard_walls.push(m.wall_s);
         rows.extend(part);

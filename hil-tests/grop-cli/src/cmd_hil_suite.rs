@@ -56,6 +56,19 @@ fn row_of(name: &str, r: &WorldReport, wall_s: f64) -> SceneRow {
     }
 }
 
+/// `grop hil --suite NAME` (a committed suite's folder) or `--scenes DIR`: [`run`] over it.
+/// (`main` sends a `grop hil` with either here, every other one to `cmd_hil::run`.)
+pub fn run_command(args: &Args) -> anyhow::Result<()> {
+    if let Some(name) = &args.suite {
+        let dir = hil_world::suite::suite_dir(name)?;
+        return run(args, name, &dir);
+    }
+    match &args.scenes {
+        Some(dir) => run(args, &dir.display().to_string(), dir),
+        None => anyhow::bail!("grop hil: a suite run needs --suite or --scenes"),
+    }
+}
+
 /// Runs the suite in `dir` with the options of `args` (method, seed, model, jobs, out-dir).
 pub fn run(args: &Args, label: &str, dir: &Path) -> anyhow::Result<()> {
     anyhow::ensure!(args.jobs > 0, "--jobs must be positive");

@@ -324,7 +324,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             );
         }
         let manifest =
-            crate::cmd_merge::manifest("soak", shard, args.seed, config, args.missions, started);
+            crate::shards::manifest("soak", shard, args.seed, config, args.missions, started);
         let dest = dir.commit(&manifest).context("writing the shard folder")?;
         println!("written: {}", dest.display());
         anyhow::ensure!(

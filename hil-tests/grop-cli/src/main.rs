@@ -27,6 +27,7 @@ mod cmd_soak;
 mod common;
 mod mission_end;
 mod picture;
+mod shards;
 
 /// GROP: visually grounded task-and-motion planning for a mobile manipulator setting dinner tables.
 #[derive(Parser, Debug)]
@@ -95,6 +96,9 @@ fn main() -> std::process::ExitCode {
         Command::Eval(a) => cmd_eval::run(a),
         Command::Bench(a) => cmd_bench::run(a),
         Command::BenchSettings(a) => cmd_bench_settings::run(a),
+        Command::Hil(a) if a.suite.is_some() || a.scenes.is_some() => {
+            cmd_hil_suite::run_command(&a)
+        }
         Command::Hil(a) => cmd_hil::run(a),
         Command::Replay(a) => cmd_replay::run(a),
         Command::LayoutPicture(a) => cmd_layout_picture::run(a),

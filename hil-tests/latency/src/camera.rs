@@ -38,7 +38,7 @@ use std::os::unix::net::{UnixListener, UnixStream};
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
-use grop_ipc::{CameraFrameHeader, CameraFrameMsg, IpcNode, PixelFormat};
+use grop_ipc::{CameraFrameHeader, CameraFrameMsg, IpcNode};
 use iceoryx2::port::listener::Listener;
 use iceoryx2::port::publisher::Publisher;
 use iceoryx2::port::subscriber::Subscriber;
@@ -277,17 +277,14 @@ fn render_bytes(dst: &mut [u8], seq: u64) {
 }
 
 fn frame_header(seq: u64, start_ns: u64) -> CameraFrameHeader {
-    CameraFrameHeader {
-        frame_id: seq,
-        stamp_ns: start_ns,
+    let camera = world::camera::OverheadCamera {
         width_px: WIDTH_PX,
         height_px: HEIGHT_PX,
-        pixel_format: PixelFormat::Rgb8 as u32,
-        row_stride_bytes: WIDTH_PX * 3,
         metres_per_px: 0.00625,
         left_x_m: 0.0,
         top_y_m: 3.0,
-    }
+    };
+    CameraFrameHeader::for_layout(seq, start_ns, &world::camera::FrameLayout::rgb8(camera))
 }
 
 fn header_bytes(h: &CameraFrameHeader) -> [u8; HEADER_BYTES] {

@@ -116,18 +116,11 @@ pub fn frame_to_plan(
             std::thread::sleep(Duration::from_millis(15));
             let stamp = monotonic_ns();
             let frame_id = 1000 + i;
-            let mut header = grop_ipc::CameraFrameHeader {
+            let header = grop_ipc::CameraFrameHeader::for_layout(
                 frame_id,
-                stamp_ns: stamp,
-                width_px: camera.width_px,
-                height_px: camera.height_px,
-                pixel_format: 0,
-                row_stride_bytes: camera.width_px * 3,
-                metres_per_px: camera.metres_per_px,
-                left_x_m: camera.left_x_m,
-                top_y_m: camera.top_y_m,
-            };
-            header.set_pixel_format(grop_ipc::PixelFormat::Rgb8);
+                stamp,
+                &world::camera::FrameLayout::rgb8(camera),
+            );
             frames.publish_with(|f| {
                 if let Ok(dst) = f.image_mut(header) {
                     dst.copy_from_slice(&image);

@@ -4,7 +4,7 @@ use std::fmt::Write as _;
 
 use crate::Summary;
 use crate::alloc_count::case_label;
-use crate::camera::{ModeResult, Transport, WaitMode};
+use crate::camera::{CameraResult, ModeResult, Transport, WaitMode};
 use crate::jitter::LoopResult;
 use crate::stats::{format_us, thousands};
 use crate::suite::SuiteResults;
@@ -28,7 +28,7 @@ pub fn markdown(results: &SuiteResults, command: &str, pipeline: Option<String>)
     header(&mut md, results, command);
     targets(&mut md, results);
     findings(&mut md, results);
-    camera(&mut md, results);
+    camera(&mut md, &results.camera);
     jitter(&mut md, results);
     can(&mut md, results);
     alloc(&mut md, results);
@@ -169,8 +169,15 @@ fn rt_label(l: &LoopResult) -> String {
     }
 }
 
-fn camera(md: &mut String, r: &SuiteResults) {
-    let c = &r.camera;
+/// The camera section alone (`examples/camera.rs`: the camera rows without the rest of the
+/// suite).
+pub fn camera_markdown(camera: &CameraResult) -> String {
+    let mut md = String::new();
+    self::camera(&mut md, camera);
+    md
+}
+
+fn camera(md: &mut String, c: &CameraResult) {
     let _ = writeln!(md, "## Camera frame across two processes\n");
     let _ = writeln!(
         md,

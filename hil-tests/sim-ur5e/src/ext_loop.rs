@@ -12,7 +12,7 @@ use crate::external_control::{
     ExternalControlScript, REVERSE_MESSAGE_INTS, SCRIPT_COMMAND_INTS, TRAJECTORY_POINT_INTS, mode,
     motion, result, trajectory_action,
 };
-use crate::fields::InputTable;
+use crate::inputs::InputTable;
 
 /// Name the External Control program runs under.
 pub const EXTERNAL_CONTROL_PROGRAM: &str = "external_control";

@@ -37,6 +37,7 @@
 pub mod external_control;
 pub mod fields;
 pub mod gripper;
+pub mod inputs;
 pub mod primary;
 pub mod robot;
 mod server;

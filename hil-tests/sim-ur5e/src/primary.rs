@@ -122,7 +122,7 @@ pub fn realtime(s: &Snapshot, out: &mut Vec<u8>) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::fields::InputTable;
+    use crate::inputs::InputTable;
     use crate::robot::{RobotInit, RobotModel};
 
     #[test]

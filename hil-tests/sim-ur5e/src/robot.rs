@@ -15,8 +15,8 @@ use std::f64::consts::PI;
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use ur5e_kin::{Joints, Ur5e, wrap_to_pi};
 
-use crate::fields::InputTable;
 use crate::gripper::GripperModel;
+use crate::inputs::InputTable;
 use crate::urscript::{Program, RtdeControlScript, Statement, Target, WatchdogAction};
 
 #[path = "rtde_control.rs"]

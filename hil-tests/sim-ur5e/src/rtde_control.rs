@@ -24,7 +24,7 @@ use super::{
     RtdeControlScript, Running, Statement, Target, WatchdogAction, iso_to_pose, pose_to_iso,
     robot_mode,
 };
-use crate::fields::InputTable;
+use crate::inputs::InputTable;
 use crate::urscript::PathStep;
 use ur5e::rtde::RtdeValue;
 

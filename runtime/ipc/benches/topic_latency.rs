@@ -111,7 +111,7 @@ fn fill_frame(
         width_px,
         height_px,
         pixel_format: 0,
-        row_stride_bytes: width_px * format.bytes_per_px(),
+        row_stride_bytes: width_px * format.bytes_per_px() as u32,
         metres_per_px: 0.03125,
         left_x_m: 0.0,
         top_y_m: 0.0,

@@ -32,8 +32,26 @@ use iceoryx2::prelude::*;
 
 use crate::port::Ipc;
 use crate::{
-    BasePoseMsg, HeartbeatMsg, ReceiveError, Received, TaskPlanMsg, Topic, TopicSubscriber,
+    BasePoseMsg, HeartbeatMsg, IpcNode, PortError, ReceiveError, Received, TaskPlanMsg, Topic,
+    TopicSubscriber,
 };
+
+impl IpcNode {
+    /// A subscriber for command topic `T` that accepts messages only from node `allowed`, in
+    /// sequence ([`AdmittingSubscriber`]); messages for which `relevant` is false are skipped.
+    pub fn admitting_subscriber<T: Sequenced>(
+        &self,
+        allowed: &str,
+        relevant: fn(&T) -> bool,
+    ) -> Result<AdmittingSubscriber<T>, PortError> {
+        Ok(AdmittingSubscriber::new(
+            self.subscriber()?,
+            self.config().clone(),
+            allowed,
+            relevant,
+        ))
+    }
+}
 
 /// Most publishers whose identity one subscriber remembers (the cache is cleared when full).
 const KNOWN_PUBLISHERS: usize = 16;

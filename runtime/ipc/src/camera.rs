@@ -23,35 +23,28 @@ pub const CAMERA_MAX_HEIGHT_PX: u32 = 960;
 /// Pixel buffer capacity in bytes: 1280 x 960 RGB8 (3.5 MiB).
 pub const CAMERA_MAX_BYTES: usize = (CAMERA_MAX_WIDTH_PX * CAMERA_MAX_HEIGHT_PX * 3) as usize;
 
-/// How a frame's pixels are encoded.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-#[repr(u32)]
-pub enum PixelFormat {
-    /// Three bytes per pixel: red, green, blue.
-    Rgb8 = 1,
-    /// One byte per pixel: gray.
-    Mono8 = 2,
+/// How a frame's pixels are encoded: `world::camera`'s enum, the one there is.
+pub use world::camera::PixelFormat;
+use world::camera::{FrameLayout, OverheadCamera};
+
+/// The value [`CameraFrameHeader::pixel_format`] carries for `format`.
+fn format_to_wire(format: PixelFormat) -> u32 {
+    match format {
+        PixelFormat::Rgb8 => 1,
+        PixelFormat::Mono8 => 2,
+    }
 }
 
-impl PixelFormat {
-    /// Bytes one pixel takes.
-    pub fn bytes_per_px(self) -> u32 {
-        match self {
-            Self::Rgb8 => 3,
-            Self::Mono8 => 1,
-        }
-    }
-
-    fn from_wire(value: u32) -> Result<Self, MessageError> {
-        match value {
-            1 => Ok(Self::Rgb8),
-            2 => Ok(Self::Mono8),
-            _ => Err(MessageError::UnknownEnumValue {
-                message: "CameraFrameHeader",
-                field: "pixel_format",
-                value,
-            }),
-        }
+/// The pixel format a header carries, checked.
+fn format_from_wire(value: u32) -> Result<PixelFormat, MessageError> {
+    match value {
+        1 => Ok(PixelFormat::Rgb8),
+        2 => Ok(PixelFormat::Mono8),
+        _ => Err(MessageError::UnknownEnumValue {
+            message: "CameraFrameHeader",
+            field: "pixel_format",
+            value,
+        }),
     }
 }
 
@@ -85,12 +78,48 @@ pub struct CameraFrameHeader {
 impl CameraFrameHeader {
     /// The pixel format, checked.
     pub fn pixel_format(&self) -> Result<PixelFormat, MessageError> {
-        PixelFormat::from_wire(self.pixel_format)
+        format_from_wire(self.pixel_format)
+    }
+
+    /// The header of frame `frame_id`, captured at `stamp_ns` on the runtime clock, with
+    /// `layout`: the one conversion from the overhead camera's geometry (`world::camera`) to the
+    /// message. A row stride beyond `u32` (no camera has one) saturates, and
+    /// [`checked_len`](Self::checked_len) refuses it.
+    pub fn for_layout(frame_id: u64, stamp_ns: u64, layout: &FrameLayout) -> Self {
+        let camera = &layout.camera;
+        Self {
+            frame_id,
+            stamp_ns,
+            width_px: camera.width_px,
+            height_px: camera.height_px,
+            pixel_format: format_to_wire(layout.format),
+            row_stride_bytes: u32::try_from(layout.row_stride_bytes).unwrap_or(u32::MAX),
+            metres_per_px: camera.metres_per_px,
+            left_x_m: camera.left_x_m,
+            top_y_m: camera.top_y_m,
+        }
+    }
+
+    /// The layout the header describes, for cutting views with `world::camera`: the one
+    /// conversion back. An unknown pixel format is an error; the sizes are checked against the
+    /// pixels by [`CameraFrameMsg::image`] and `FrameLayout::check`.
+    pub fn layout(&self) -> Result<FrameLayout, MessageError> {
+        Ok(FrameLayout {
+            camera: OverheadCamera {
+                width_px: self.width_px,
+                height_px: self.height_px,
+                metres_per_px: self.metres_per_px,
+                left_x_m: self.left_x_m,
+                top_y_m: self.top_y_m,
+            },
+            format: self.pixel_format()?,
+            row_stride_bytes: self.row_stride_bytes as usize,
+        })
     }
 
     /// Sets the pixel format.
     pub fn set_pixel_format(&mut self, format: PixelFormat) {
-        self.pixel_format = format as u32;
+        self.pixel_format = format_to_wire(format);
     }
 
     /// Checks every field of the header against the buffer and returns the number of bytes the
@@ -110,7 +139,7 @@ impl CameraFrameHeader {
             });
         }
         // Cannot overflow: both at most 1280 * 3.
-        let row_bytes = self.width_px * format.bytes_per_px();
+        let row_bytes = self.width_px * format.bytes_per_px() as u32;
         if self.row_stride_bytes < row_bytes {
             return Err(MessageError::CountTooLarge {
                 message: "CameraFrameHeader",
@@ -225,17 +254,51 @@ mod tests {
     use super::*;
 
     fn header(width_px: u32, height_px: u32, format: PixelFormat) -> CameraFrameHeader {
-        CameraFrameHeader {
-            frame_id: 1,
-            stamp_ns: 2,
+        let camera = OverheadCamera {
             width_px,
             height_px,
-            pixel_format: format as u32,
-            row_stride_bytes: width_px * format.bytes_per_px(),
             metres_per_px: 0.03125,
             left_x_m: -10.0,
             top_y_m: 11.5,
+        };
+        CameraFrameHeader::for_layout(
+            1,
+            2,
+            &FrameLayout {
+                camera,
+                format,
+                row_stride_bytes: width_px as usize * format.bytes_per_px(),
+            },
+        )
+    }
+
+    /// The one conversion between `world::camera`'s layout and the header: there and back
+    /// unchanged, an unknown format refused, the wire values fixed.
+    #[test]
+    fn a_layout_goes_through_the_header_and_back_unchanged() {
+        let camera = OverheadCamera {
+            width_px: 640,
+            height_px: 480,
+            metres_per_px: 0.0125,
+            left_x_m: -0.5,
+            top_y_m: 8.25,
+        };
+        let padded = FrameLayout {
+            camera,
+            format: PixelFormat::Mono8,
+            row_stride_bytes: 648,
+        };
+        for layout in [FrameLayout::rgb8(camera), padded] {
+            let header = CameraFrameHeader::for_layout(9, 1_500, &layout);
+            assert_eq!((header.frame_id, header.stamp_ns), (9, 1_500));
+            assert!(header.checked_len().is_ok());
+            assert_eq!(header.layout(), Ok(layout));
         }
+        assert_eq!(header(1, 1, PixelFormat::Rgb8).pixel_format, 1);
+        assert_eq!(header(1, 1, PixelFormat::Mono8).pixel_format, 2);
+        let mut unknown = header(640, 480, PixelFormat::Rgb8);
+        unknown.pixel_format = 7;
+        assert!(unknown.layout().is_err());
     }
 
     /// The layout is the protocol between processes: a change must bump the `/vN` type names.

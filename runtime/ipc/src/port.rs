@@ -8,7 +8,6 @@ use std::marker::PhantomData;
 use std::ops::Deref;
 use std::time::{Duration, Instant};
 
-use can_bus::os::{ServiceOpenFailure, service_open_failure};
 use iceoryx2::port::listener::Listener;
 use iceoryx2::port::notifier::Notifier;
 use iceoryx2::port::publisher::Publisher;
@@ -17,7 +16,6 @@ use iceoryx2::prelude::*;
 use iceoryx2::sample::Sample;
 use iceoryx2::service::port_factory::{event, publish_subscribe};
 
-use crate::admit::{AdmittingSubscriber, Sequenced};
 use crate::{CameraFrameHeader, CameraFrameMsg, MessageError, Topic};
 
 pub(crate) type Ipc = ipc_threadsafe::Service;
@@ -203,14 +201,12 @@ impl IpcNode {
             .max_nodes(T::MAX_SUBSCRIBERS + T::MAX_PUBLISHERS)
             .enable_safe_overflow(true)
             .open_or_create()
-            .map_err(|error| match service_open_failure(&error) {
-                ServiceOpenFailure::Incompatible(detail) => PortError::Incompatible {
+            .map_err(|error| match incompatible(&error) {
+                Some(detail) => PortError::Incompatible {
                     service: service.clone(),
                     detail,
                 },
-                ServiceOpenFailure::NodeLimit | ServiceOpenFailure::Other => {
-                    ipc("opening the service", &error)
-                }
+                None => ipc("opening the service", &error),
             })?;
         // A topic with one writer must not have room for a second: a service another build or
         // program created with more publisher slots is refused, not joined (docs/security.md).
@@ -280,19 +276,9 @@ impl IpcNode {
         })
     }
 
-    /// A subscriber for command topic `T` that accepts messages only from node `allowed`, in
-    /// sequence ([`AdmittingSubscriber`]); messages for which `relevant` is false are skipped.
-    pub fn admitting_subscriber<T: Sequenced>(
-        &self,
-        allowed: &str,
-        relevant: fn(&T) -> bool,
-    ) -> Result<AdmittingSubscriber<T>, PortError> {
-        Ok(AdmittingSubscriber::new(
-            self.subscriber()?,
-            self.node.config().clone(),
-            allowed,
-            relevant,
-        ))
+    /// iceoryx2's configuration of this node (where its node and service files are).
+    pub(crate) fn config(&self) -> &Config {
+        self.node.config()
     }
 
     /// A subscriber for topic `T`. It first receives the topic's history (the newest message for
@@ -337,6 +323,33 @@ impl IpcNode {
             listener_fd,
             _services: services,
         })
+    }
+}
+
+/// What in an iceoryx2 open-or-create error of a publish-subscribe service says that the
+/// service exists with other settings or another payload type (another build or program), named;
+/// `None` for anything else (shared memory, permissions, a full or corrupted service), which is
+/// reported as the error itself.
+fn incompatible(
+    error: &iceoryx2::service::builder::publish_subscribe::PublishSubscribeOpenOrCreateError,
+) -> Option<String> {
+    use iceoryx2::service::builder::publish_subscribe::{
+        PublishSubscribeOpenError as Open, PublishSubscribeOpenOrCreateError as OpenOrCreate,
+    };
+    match error {
+        OpenOrCreate::PublishSubscribeOpenError(
+            open @ (Open::IncompatibleTypes
+            | Open::IncompatibleMessagingPattern
+            | Open::IncompatibleAttributes
+            | Open::DoesNotSupportRequestedMinBufferSize
+            | Open::DoesNotSupportRequestedMinHistorySize
+            | Open::DoesNotSupportRequestedMinSubscriberBorrowedSamples
+            | Open::DoesNotSupportRequestedAmountOfPublishers
+            | Open::DoesNotSupportRequestedAmountOfSubscribers
+            | Open::DoesNotSupportRequestedAmountOfNodes
+            | Open::IncompatibleOverflowBehavior),
+        ) => Some(format!("{open:?}")),
+        _ => None,
     }
 }
 

@@ -110,7 +110,7 @@ fn camera_header(
         width_px,
         height_px,
         pixel_format: 0,
-        row_stride_bytes: width_px * format.bytes_per_px(),
+        row_stride_bytes: width_px * format.bytes_per_px() as u32,
         metres_per_px: 0.03125,
         left_x_m: -10.0,
         top_y_m: 11.5,

@@ -6,9 +6,9 @@
 #![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failure panics with its message
 
 use grop_select::task_feasibility;
-use planner::feasibility::{FcnEvaluator, FeasibilityEvaluator, FeasibilityQuery};
+use planner::feasibility::FcnEvaluator;
 use planner::methods::{MethodKind, PlannerConfig, location_heat};
-use planner::problem::{TaskProblem, side_of_location};
+use planner::problem::{TaskProblem, evaluate_crops, side_of_location};
 use world::camera::{FrameLayout, OverheadCamera, cut_view, render_frame};
 use world::view::CROP_CELLS;
 use world::{Heatmap, RobotConfig, Scene};
@@ -24,19 +24,8 @@ fn psi_heatmaps(
     targets: &[[f64; 3]],
     crops: &[[u8; CROP_CELLS]],
 ) -> Vec<Heatmap> {
-    let queries: Vec<FeasibilityQuery<'_>> = crops
-        .iter()
-        .enumerate()
-        .map(|(i, crop)| FeasibilityQuery {
-            scene,
-            robot,
-            target: targets[i / 2],
-            side: side_of_location(i),
-            crop,
-        })
-        .collect();
     let mut out = vec![Heatmap::zeros(); crops.len()];
-    psi.evaluate(&queries, &mut out).unwrap();
+    evaluate_crops(scene, robot, targets, crops, psi, &mut out).unwrap();
     out
 }
 

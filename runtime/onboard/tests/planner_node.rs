@@ -10,9 +10,8 @@ use std::sync::atomic::{AtomicU32, Ordering};
 use std::time::Duration;
 
 use grop_ipc::{
-    CameraFrameHeader, CameraFrameMsg, HeartbeatMsg, HeatmapsMsg, IpcNode, PixelFormat,
-    ProcessRole, ReplanReason, ReplanRequestMsg, TaskPlanMsg, TaskStep, TaskStepKind,
-    TopicPublisher, TopicSubscriber,
+    CameraFrameMsg, HeartbeatMsg, HeatmapsMsg, IpcNode, ProcessRole, ReplanReason,
+    ReplanRequestMsg, TaskPlanMsg, TaskStep, TaskStepKind, TopicPublisher, TopicSubscriber,
 };
 use grop_onboard::deployment::{PlannerSettings, RetryPolicy};
 use grop_onboard::planner_node::{Answer, PlannerNode};
@@ -20,7 +19,7 @@ use planner::costs::GridTravelTime;
 use planner::feasibility::FcnEvaluator;
 use planner::methods::{MethodKind, Planner, PlannerConfig, TaskMotionPlanner};
 use planner::problem::TaskProblem;
-use world::camera::{OverheadCamera, render_frame};
+use world::camera::{FrameLayout, OverheadCamera, render_frame};
 use world::{RobotConfig, Scene, Side};
 
 static COUNTER: AtomicU32 = AtomicU32::new(0);
@@ -74,18 +73,11 @@ fn publish_frame_at(
     stamp: Duration,
 ) {
     let cam = OverheadCamera::fitting_room(scene);
-    let mut header = CameraFrameHeader {
+    let header = grop_ipc::CameraFrameHeader::for_layout(
         frame_id,
-        stamp_ns: u64::try_from(stamp.as_nanos()).unwrap(),
-        width_px: cam.width_px,
-        height_px: cam.height_px,
-        pixel_format: 0,
-        row_stride_bytes: cam.width_px * 3,
-        metres_per_px: cam.metres_per_px,
-        left_x_m: cam.left_x_m,
-        top_y_m: cam.top_y_m,
-    };
-    header.set_pixel_format(PixelFormat::Rgb8);
+        u64::try_from(stamp.as_nanos()).unwrap(),
+        &FrameLayout::rgb8(cam),
+    );
     camera
         .publish_with(|frame| {
             let pixels = frame.image_mut(header).unwrap();
@@ -568,18 +560,11 @@ fn requests_wait_for_a_frame_and_bad_frames_are_survived() {
     }
     // A frame that sees only the room's west end.
     let cam = OverheadCamera::fitting_room(&scene);
-    let mut header = CameraFrameHeader {
-        frame_id: 3,
-        stamp_ns: 0,
+    let west = OverheadCamera {
         width_px: 100,
-        height_px: cam.height_px,
-        pixel_format: 0,
-        row_stride_bytes: 300,
-        metres_per_px: cam.metres_per_px,
-        left_x_m: cam.left_x_m,
-        top_y_m: cam.top_y_m,
+        ..cam
     };
-    header.set_pixel_format(PixelFormat::Rgb8);
+    let header = grop_ipc::CameraFrameHeader::for_layout(3, 0, &FrameLayout::rgb8(west));
     p.camera
         .publish_with(|f| {
             f.image_mut(header).unwrap().fill(96);

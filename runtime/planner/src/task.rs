@@ -883,7 +883,7 @@ fn product_plan_by_branch_and_bound(
 }
 
 /// One trip's actions: to the station, load `load_order`, then navigate to and unload each of
-/// `unloads` (a single-trip plan is one trip; [`crate::multi_trip`] plans several).
+/// `unloads` (a single-trip plan is one trip; the multi-trip planner plans several).
 pub(crate) fn push_trip_actions(
     actions: &mut Vec<Action>,
     load_order: &[ObjectId],

@@ -145,7 +145,7 @@ impl OverheadCamera {
     }
 }
 
-/// How a frame's pixels are encoded.
+/// How a frame's pixels are encoded (the one enum: the `camera/frame` message carries it too).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum PixelFormat {
     /// Red, green, blue bytes.

@@ -1,13 +1,11 @@
 //! Shared reading of the versioned world files (scene and robot): extension -> encoding, read,
-//! version probe, TOML or JSON parse, validation. Each file type maps [`FileFailure`] into its
-//! own error type, adding the path.
+//! version probe, TOML or JSON parse, validation ([`InvalidField`], and the search for non-finite
+//! numbers). Each file type maps [`FileFailure`] into its own error type, adding the path.
 
 use std::path::Path;
 
-use serde::Deserialize;
 use serde::de::DeserializeOwned;
-
-use crate::scene::InvalidField;
+use serde::{Deserialize, Serialize};
 
 /// File encodings of scene and robot files.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -136,4 +134,48 @@ mod tests {
         std::fs::write(&small, "format_version = 1\n").expect("write");
         assert!(load::<VersionProbe>(&small, 1..=1, |_| Ok(())).is_ok());
     }
+}
+
+/// A field that failed validation: its path in the file (`chairs[3].x_m`) and the reason.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("field `{field}`: {reason}")]
+pub struct InvalidField {
+    /// Path of the field, e.g. `chairs[3].x_m`.
+    pub field: String,
+    /// What is wrong with it.
+    pub reason: String,
+}
+
+impl InvalidField {
+    pub(crate) fn new(field: impl Into<String>, reason: impl Into<String>) -> Self {
+        Self {
+            field: field.into(),
+            reason: reason.into(),
+        }
+    }
+}
+
+/// Finds the first non-finite number anywhere in a serialisable value and names its path.
+pub(crate) fn first_non_finite<T: Serialize>(value: &T) -> Option<String> {
+    fn walk(value: &toml::Value, path: &str) -> Option<String> {
+        match value {
+            toml::Value::Float(f) if !f.is_finite() => Some(path.to_owned()),
+            toml::Value::Array(items) => items
+                .iter()
+                .enumerate()
+                .find_map(|(i, v)| walk(v, &format!("{path}[{i}]"))),
+            toml::Value::Table(table) => table.iter().find_map(|(k, v)| {
+                let child = if path.is_empty() {
+                    k.clone()
+                } else {
+                    format!("{path}.{k}")
+                };
+                walk(v, &child)
+            }),
+            _ => None,
+        }
+    }
+    // A value that toml cannot represent has no floats we could check; serde_json would reject
+    // NaN anyway, so treat a failed conversion as "nothing found" and let validation go on.
+    toml::Value::try_from(value).ok().and_then(|v| walk(&v, ""))
 }

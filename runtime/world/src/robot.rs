@@ -11,9 +11,9 @@ use serde::{Deserialize, Serialize};
 use ur5e_kin::PlaceConfig;
 
 use crate::file::{self, FileEncoding, FileFailure, encoding_of};
+use crate::file::{InvalidField, first_non_finite};
 use crate::geometry::OrientedRect;
 use crate::lidar::LidarSpec;
-use crate::scene::{InvalidField, first_non_finite};
 
 /// The robot format version this crate writes (2: the `[lidar]` section).
 pub const ROBOT_FORMAT_VERSION: u32 = 2;

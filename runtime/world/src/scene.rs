@@ -9,7 +9,8 @@ use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
-use crate::file::{self, FileEncoding, FileFailure, encoding_of};
+pub use crate::file::InvalidField;
+use crate::file::{self, FileEncoding, FileFailure, encoding_of, first_non_finite};
 use crate::geometry::OrientedRect;
 
 /// The scene format version this crate reads and writes.
@@ -394,50 +395,6 @@ impl SceneError {
             FileFailure::Invalid(invalid) => SceneError::Invalid { path, invalid },
         }
     }
-}
-
-/// A field that failed validation: its path in the file (`chairs[3].x_m`) and the reason.
-#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
-#[error("field `{field}`: {reason}")]
-pub struct InvalidField {
-    /// Path of the field, e.g. `chairs[3].x_m`.
-    pub field: String,
-    /// What is wrong with it.
-    pub reason: String,
-}
-
-impl InvalidField {
-    pub(crate) fn new(field: impl Into<String>, reason: impl Into<String>) -> Self {
-        Self {
-            field: field.into(),
-            reason: reason.into(),
-        }
-    }
-}
-
-/// Finds the first non-finite number anywhere in a serialisable value and names its path.
-pub(crate) fn first_non_finite<T: Serialize>(value: &T) -> Option<String> {
-    fn walk(value: &toml::Value, path: &str) -> Option<String> {
-        match value {
-            toml::Value::Float(f) if !f.is_finite() => Some(path.to_owned()),
-            toml::Value::Array(items) => items
-                .iter()
-                .enumerate()
-                .find_map(|(i, v)| walk(v, &format!("{path}[{i}]"))),
-            toml::Value::Table(table) => table.iter().find_map(|(k, v)| {
-                let child = if path.is_empty() {
-                    k.clone()
-                } else {
-                    format!("{path}.{k}")
-                };
-                walk(v, &child)
-            }),
-            _ => None,
-        }
-    }
-    // A value that toml cannot represent has no floats we could check; serde_json would reject
-    // NaN anyway, so treat a failed conversion as "nothing found" and let validation go on.
-    toml::Value::try_from(value).ok().and_then(|v| walk(&v, ""))
 }
 
 impl Scene {

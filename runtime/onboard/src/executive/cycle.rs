@@ -50,7 +50,8 @@ pub struct CycleInputs<'a> {
     pub skill: Option<Result<SkillStatus, ArmFault>>,
     /// Pose fixes received since the last base cycle.
     pub fixes: &'a [BasePoseMsg],
-    /// Plans received since the last base cycle.
+    /// Plans received since the last cycle (the shell reads them every cycle; the core takes
+    /// one on an arm cycle too and asks for its first path at once).
     pub plans: &'a [TaskPlanMsg],
     /// Planner heartbeats received since the last base cycle.
     pub planner_heartbeats: u32,

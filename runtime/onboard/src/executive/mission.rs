@@ -353,6 +353,8 @@ impl MissionCore {
             self.watch_motion(inputs, outputs);
             self.base_loop(inputs, outputs);
             self.turn_the_other_way();
+        } else if !inputs.plans.is_empty() {
+            self.plan_between_base_cycles(inputs, outputs);
         }
         self.velocity = self.within_limits(self.velocity);
         outputs.velocity = self.velocity;
@@ -618,6 +620,35 @@ impl MissionCore {
         }
         if matches!(self.state, MissionState::Aborted(_)) {
             self.velocity = Twist::ZERO;
+        }
+    }
+
+    /// A plan that came in on an arm cycle (the shell reads plans every cycle): taken at once,
+    /// as the next base cycle would, and the phases that are then ready run (plan taken -> path
+    /// asked), so the path search starts up to one base period earlier. Nothing else of the
+    /// base loop runs here, and the velocity stays as it is (zero: the base holds while a plan
+    /// is awaited); the first velocity is commanded on the base cycle that takes the path.
+    fn plan_between_base_cycles(&mut self, inputs: &CycleInputs<'_>, outputs: &mut CycleOutputs) {
+        let now = inputs.now;
+        let taken = self.stats.plans;
+        for plan in inputs.plans {
+            if plan.answers_request == self.request_id && self.request_id != 0 {
+                self.take_plan(plan, now, outputs);
+            }
+        }
+        let ready = self.stats.plans != taken
+            && matches!(self.state, MissionState::Running)
+            && self.latch.is_none()
+            && inputs.base.driving;
+        if ready {
+            let velocity = self.velocity;
+            // Answers are the base cycle's to take.
+            let inputs = CycleInputs {
+                answer: None,
+                ..*inputs
+            };
+            self.mission_step(&inputs, outputs);
+            self.velocity = velocity;
         }
     }
 

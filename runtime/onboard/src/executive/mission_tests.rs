@@ -648,6 +648,52 @@ fn the_base_holds_still_until_the_arm_is_parked_and_then_leaves_in_the_same_cycl
 }
 
 #[test]
+fn a_plan_on_an_arm_cycle_asks_for_its_path_at_once_and_the_base_cycle_drives() {
+    let mut b = Bench::new();
+    let request = b.until_request();
+    // The arm parked in the arm cycle before the plan.
+    b.step(|i| {
+        i.base_cycle = false;
+        i.skill = Some(Ok(SkillStatus::Done { object_held: false }));
+    });
+    let stray = plan(request + 5, &[TaskStep::navigate(3.0, 1.0, 0.0, 6.0)]);
+    b.step(|i| {
+        i.base_cycle = false;
+        i.plans = std::slice::from_ref(&stray);
+    });
+    assert_eq!(
+        b.core.stats().plans,
+        0,
+        "a plan for another request is ignored"
+    );
+    assert!(b.out.job.is_none());
+    let p = plan(request, &[TaskStep::navigate(3.0, 1.0, 0.0, 6.0)]);
+    b.step(|i| {
+        i.base_cycle = false;
+        i.plans = std::slice::from_ref(&p);
+    });
+    assert!(b.saw(EventKind::PlanStarted));
+    let Some(Job::Path { id, from, to }) = b.out.job else {
+        panic!(
+            "the path is asked for in the arm cycle the plan came in: {:?}",
+            b.out.job
+        );
+    };
+    assert_eq!(
+        b.out.velocity,
+        Twist::ZERO,
+        "no velocity between base cycles"
+    );
+    let answer = Answer::Path(id, Ok(straight_path(from, to)));
+    b.step(|i| i.answer = Some(&answer));
+    assert!(
+        b.out.velocity.speed_mps > 0.0,
+        "the base cycle that takes the path commands the first velocity: {:?}",
+        b.out.velocity
+    );
+}
+
+#[test]
 fn an_arm_that_fails_to_park_aborts() {
     let mut b = Bench::new();
     let _ = b.until_request();

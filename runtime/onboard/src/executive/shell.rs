@@ -459,8 +459,8 @@ impl<D: BaseDevice, A: ArmDevice> Executive<D, A> {
 }
 
 impl<D: BaseDevice, A: ArmDevice> Executive<D, A> {
-    /// Read: the arm every cycle (its state, then the skill in flight); on base cycles the
-    /// fixes, heartbeats, plans and the worker's answer.
+    /// Read: the arm every cycle (its state, then the skill in flight) and the plans; on base
+    /// cycles the fixes, heartbeats and the worker's answer too.
     fn read(&mut self, now: Duration, base_cycle: bool) {
         self.arm_reading = self.arm.update(now);
         if let Ok(s) = self.arm_reading {
@@ -477,11 +477,13 @@ impl<D: BaseDevice, A: ArmDevice> Executive<D, A> {
             }
             self.skill_reading = Some(result);
         }
-        if !base_cycle {
-            return;
-        }
         // Only the deployment's publishers, in sequence (inputs.rs); refusals are reported.
         let inputs = &mut self.ports.inputs;
+        if !base_cycle {
+            // Plans every cycle: the core asks for the path as soon as one is in (docs/latency.md).
+            inputs.read_plans(now, &mut self.plans, MAX_PLANS_PER_CYCLE);
+            return;
+        }
         inputs.read_fixes(now, &mut self.fixes, MAX_FIXES_PER_CYCLE);
         self.planner_heartbeats = inputs.read_planner_heartbeats(now);
         inputs.read_plans(now, &mut self.plans, MAX_PLANS_PER_CYCLE);
