@@ -673,7 +673,7 @@ fn a_plan_on_an_arm_cycle_asks_for_its_path_at_once_and_the_base_cycle_drives() 
         i.plans = std::slice::from_ref(&p);
     });
     assert!(b.saw(EventKind::PlanStarted));
-    let Some(Job::Path { id, from, to }) = b.out.job else {
+    let Some(Job::Path { id, from, to, .. }) = b.out.job else {
         panic!(
             "the path is asked for in the arm cycle the plan came in: {:?}",
             b.out.job
