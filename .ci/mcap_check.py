@@ -23,6 +23,7 @@ EXPECTED = {
     "/camera/frame", "/heatmaps", "/plan/task", "/plan/request", "/base/pose", "/base/state",
     "/arm/state", "/arm/io", "/events", "/health", "/can", "/timing/decision", "/load/request", "/operator/enable",
     "/tf", "/scene", "/plan/path", "/base/path", "/heatmaps/grid", "/events/log", "/scan",
+    "/world/truth", "/psi/views",
 }
 # The well-known schema each of these topics must have.
 WELL_KNOWN = {
@@ -30,7 +31,10 @@ WELL_KNOWN = {
     "/scene": "foxglove.SceneUpdate", "/plan/path": "foxglove.PosesInFrame",
     "/base/path": "foxglove.PosesInFrame", "/heatmaps/grid": "foxglove.Grid",
     "/events/log": "foxglove.Log", "/scan": "foxglove.PointCloud",
+    "/psi/views": "foxglove.RawImage",
 }
+# Frames /tf must name at least once (the HIL world's truth beside the estimate).
+FRAMES = {"map", "odom", "base_link", "arm_base", "arm_link6", "truth_base_link"}
 GROP_RAW_IMAGE_EXTRAS = {"grop_frame_id", "metres_per_px", "left_x_m", "top_y_m"}
 
 
@@ -84,6 +88,9 @@ def check_well_known(topic, schema_name, doc):
     if schema_name == "foxglove.PointCloud":
         if message.point_stride < 12 or len(message.data) % message.point_stride:
             return f"point cloud data of {len(message.data)} bytes, stride {message.point_stride}"
+    if schema_name == "foxglove.RawImage":
+        if message.step == 0 or len(message.data) != message.step * message.height:
+            return f"image data of {len(message.data)} bytes, step {message.step} x height {message.height}"
     if schema_name == "foxglove.SceneUpdate" and not message.entities:
         return "a scene without entities"
     if schema_name == "foxglove.FrameTransforms" and not message.transforms:
@@ -131,6 +138,7 @@ def main(path):
             failures.append(f"grop.log metadata: log_format {log_format!r} (expected 2 or later)")
         seen = {}
         checked = {}
+        frames = set()
         for schema, channel, message in reader.iter_messages():
             doc = json.loads(message.data)
             missing_keys = properties.get(channel.id, set()) - set(doc)
@@ -143,6 +151,9 @@ def main(path):
                 data = base64.b64decode(doc["data"])
                 if len(data) != doc["step"] * doc["height"]:
                     failures.append(f"camera frame of {len(data)} bytes, not step x height")
+            if channel.topic == "/tf":
+                frames.update(t["child_frame_id"] for t in doc["transforms"])
+                frames.update(t["parent_frame_id"] for t in doc["transforms"])
             if schema.name.startswith("foxglove."):
                 error = check_well_known(channel.topic, schema.name, doc)
                 if error:
@@ -155,6 +166,8 @@ def main(path):
             print(f"  {c.topic:18s} {schemas[c.schema_id].name:20s} {n:7d} messages")
             if n != counts.get(cid, -1):
                 failures.append(f"{c.topic}: {n} decoded, summary says {counts.get(cid)}")
+        if FRAMES - frames:
+            failures.append(f"/tf never names {sorted(FRAMES - frames)}")
         for topic in WELL_KNOWN:
             if checked.get(topic, 0) == 0:
                 failures.append(f"{topic}: no message parsed as {WELL_KNOWN[topic]}")

@@ -13,7 +13,7 @@ use std::path::PathBuf;
 use anyhow::{Context, bail};
 use base64::Engine as _;
 use base64::engine::general_purpose::STANDARD as BASE64;
-use grop_onboard::mission_log::{Channel, LoggedMessage, MissionLog, codec};
+use grop_onboard::mission_log::{Channel, LoggedMessage, MissionLog};
 use serde_json::Value;
 use world::view::{Rgb, RgbImage};
 
@@ -202,23 +202,37 @@ impl Painter<'_> {
         }
     }
 
+    /// The newest message of the panel's image topic: any `foxglove.RawImage` (`rgb8` or
+    /// `mono8`; the camera, Psi's views), scaled to fit.
     fn image(&self, img: &mut RgbImage, config: &Value, r: Rect) -> anyhow::Result<()> {
         let topic = config["imageMode"]["imageTopic"].as_str().unwrap_or("");
         let Some(m) = self.latest(topic) else {
             draw_text(img, r.x + 8, r.y + 8, "no image yet", 2, DIM);
             return Ok(());
         };
-        let mut frame = grop_ipc::CameraFrameMsg::boxed_zeroed();
-        codec::decode_camera_into(&m.data, &mut frame)
-            .with_context(|| format!("the camera frame at {} ns", m.log_time))?;
-        let h = frame.header;
-        let pixels = frame.image().context("the camera frame's image")?;
-        let (w, ht) = (i64::from(h.width_px), i64::from(h.height_px));
-        let channels = if h.row_stride_bytes >= h.width_px * 3 {
-            3
-        } else {
-            1
+        let at = || format!("the image on {topic} at {} ns", m.log_time);
+        let v: Value = serde_json::from_slice(&m.data).with_context(at)?;
+        let pixels = BASE64
+            .decode(v["data"].as_str().unwrap_or(""))
+            .with_context(at)?;
+        let dim = |k: &str| {
+            v[k].as_u64()
+                .and_then(|x| i64::try_from(x).ok())
+                .unwrap_or(0)
         };
+        let (w, ht, step) = (dim("width"), dim("height"), dim("step"));
+        let channels = match v["encoding"].as_str() {
+            Some("rgb8") => 3,
+            Some("mono8") => 1,
+            other => bail!("{}: encoding {other:?} (rgb8 or mono8 expected)", at()),
+        };
+        if w == 0 || ht == 0 || step < w * channels || (pixels.len() as i64) < step * ht {
+            bail!(
+                "{}: {} bytes for {w} x {ht} at a step of {step}",
+                at(),
+                pixels.len()
+            );
+        }
         let scale = (r.w as f64 / w as f64).min(r.h as f64 / ht as f64);
         let (dw, dh) = ((w as f64 * scale) as i64, (ht as f64 * scale) as i64);
         let (ox, oy) = (r.x + (r.w - dw) / 2, r.y + (r.h - dh) / 2);
@@ -226,7 +240,7 @@ impl Painter<'_> {
             for px in 0..dw {
                 let sx = ((px as f64 / scale) as i64).min(w - 1);
                 let sy = ((py as f64 / scale) as i64).min(ht - 1);
-                let i = (sy * i64::from(h.row_stride_bytes) + sx * channels) as usize;
+                let i = (sy * step + sx * channels) as usize;
                 let c = if channels == 3 {
                     Rgb([pixels[i], pixels[i + 1], pixels[i + 2]])
                 } else {
@@ -235,7 +249,7 @@ impl Painter<'_> {
                 put(img, ox + px, oy + py, c);
             }
         }
-        let stamp = format!("frame at {:.1} s", m.log_time as f64 * 1e-9);
+        let stamp = format!("at {:.1} s", m.log_time as f64 * 1e-9);
         draw_text(img, r.x + 8, r.y + r.h - 24, &stamp, 2, TEXT);
         Ok(())
     }

@@ -194,6 +194,7 @@ struct Ports {
     world_events: TopicPublisher<EventMsg>,
     health: TopicPublisher<HeartbeatMsg>,
     enable: TopicPublisher<grop_ipc::OperatorEnableMsg>,
+    truth: TopicPublisher<grop_ipc::TruthMsg>,
     events: TopicSubscriber<EventMsg>,
     plans: TopicSubscriber<TaskPlanMsg>,
     loads: TopicSubscriber<LoadRequestMsg>,
@@ -278,6 +279,7 @@ impl World {
             world_events: node.publisher().map_err(ipc)?,
             health: node.publisher().map_err(ipc)?,
             enable: node.publisher().map_err(ipc)?,
+            truth: node.publisher().map_err(ipc)?,
             events: node.subscriber().map_err(ipc)?,
             plans: node.subscriber().map_err(ipc)?,
             loads: node.subscriber().map_err(ipc)?,
@@ -386,6 +388,8 @@ impl World {
         let mut hb_seq = 0u64;
         let mut next_frame = Duration::ZERO;
         let mut next_fix = Duration::ZERO;
+        let mut next_truth = Duration::ZERO;
+        let mut truth_seq = 0u64;
         let mut next_traj = Duration::ZERO;
         let mut next_progress = Duration::ZERO;
         let mut next_collision_check = Duration::ZERO;
@@ -716,6 +720,21 @@ impl World {
                 );
             }
 
+            // The truth, for the log (never read onboard).
+            if now >= next_truth {
+                next_truth = now + TRUTH_PERIOD;
+                truth_seq += 1;
+                let _ = self.ports.truth.publish(&grop_ipc::TruthMsg {
+                    seq: truth_seq,
+                    stamp_ns: ns(now),
+                    x_m: pose.x_m,
+                    y_m: pose.y_m,
+                    yaw_rad: pose.yaw_rad,
+                    speed_mps: f64::from(v),
+                    yaw_rate_radps: f64::from(w),
+                });
+            }
+
             // Localisation fixes.
             if now >= next_fix {
                 next_fix = now + cfg.fix_period;
@@ -1032,6 +1051,8 @@ impl World {
 
 /// The executive's base command period (the stored limits do not depend on it).
 const BASE_PERIOD: Duration = Duration::from_millis(20);
+/// Time between two messages of the truth (`world/truth`, 20 Hz).
+const TRUTH_PERIOD: Duration = Duration::from_millis(50);
 
 /// The simulated base's velocity and yaw-rate limits (what a normalised command is scaled by).
 fn base_limits(sim: &SimRmp) -> (f64, f64) {

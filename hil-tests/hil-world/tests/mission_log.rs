@@ -289,6 +289,47 @@ fn the_same_mission_twice_logs_the_same_messages_and_a_replay_reproduces_them() 
                 }
             }
         }
+        // Psi's views: one image for every heatmaps message (its frame was logged).
+        assert_eq!(
+            log.channel(Channel::PsiViews).count(),
+            log.channel(Channel::Heatmaps).count()
+        );
+        // The world's truth is its own frame in /tf, near the estimate (map -> odom ->
+        // base_link): within the localisation's error, not a mix-up of frames.
+        let mut with_truth = 0;
+        for m in log.channel(Channel::Tf) {
+            let v: serde_json::Value = serde_json::from_slice(&m.data).expect("JSON");
+            let planar = |child: &str| {
+                v["transforms"]
+                    .as_array()
+                    .expect("transforms")
+                    .iter()
+                    .find(|t| t["child_frame_id"] == child)
+                    .map(|t| {
+                        let f = |a: &str, b: &str| t[a][b].as_f64().expect("a number");
+                        let yaw = 2.0 * f("rotation", "z").atan2(f("rotation", "w"));
+                        (f("translation", "x"), f("translation", "y"), yaw)
+                    })
+            };
+            let (Some(truth), Some(odom), Some(base)) = (
+                planar("truth_base_link"),
+                planar("odom"),
+                planar("base_link"),
+            ) else {
+                continue;
+            };
+            with_truth += 1;
+            let x = odom.0 + odom.2.cos() * base.0 - odom.2.sin() * base.1;
+            let y = odom.1 + odom.2.sin() * base.0 + odom.2.cos() * base.1;
+            let off = (x - truth.0).hypot(y - truth.1);
+            assert!(
+                off < 0.5,
+                "estimate {x:.3}, {y:.3} vs truth {truth:?} at {} ns",
+                m.log_time
+            );
+        }
+        assert!(with_truth > 0, "no truth frame in /tf");
+        // Every plan's camera frame is in the log.
         // Every plan's camera frame is in the log.
         let frames: Vec<u64> = log
             .channel(Channel::CameraFrame)

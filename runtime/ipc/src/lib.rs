@@ -17,6 +17,8 @@
 //! | `<ns>/camera/frame` | [`CameraFrameMsg`] (1280 x 960 RGB8 max + metric header) | newest frame |
 //! | `<ns>/arm/io` | [`ArmIoMsg`] (every call on the arm and its answer) | none |
 //! | `<ns>/operator/enable` | [`OperatorEnableMsg`] (the operator's enable) | newest |
+//! | `<ns>/base/scan` | [`ScanMsg`] (a revolution of the range sensor) | newest |
+//! | `<ns>/world/truth` | [`TruthMsg`] (the simulated world's truth; HIL only) | newest |
 //!
 //! ```no_run
 //! use std::time::Duration;
@@ -68,6 +70,7 @@ pub use mission::{
     BasePoseMsg, HEATMAP_COLS, HEATMAP_ROWS, HeartbeatMsg, HeatmapsMsg, LoadRequestMsg,
     LocationHeatmap, MAX_HEATMAPS, MAX_TASK_OBJECTS, MAX_TASK_STEPS, OperatorEnableMsg,
     PoseFixKind, ProcessRole, ReplanReason, ReplanRequestMsg, TaskPlanMsg, TaskStep, TaskStepKind,
+    TruthMsg,
 };
 pub use port::{
     FrameError, IpcNode, NodeError, PortError, PublishError, ReceiveError, Received,
@@ -110,6 +113,7 @@ mod sealed {
     impl Sealed for super::ArmIoMsg {}
     impl Sealed for super::OperatorEnableMsg {}
     impl Sealed for super::ScanMsg {}
+    impl Sealed for super::TruthMsg {}
 }
 
 impl Topic for BaseStateMsg {
@@ -131,6 +135,19 @@ impl Topic for ScanMsg {
     const BUFFER: usize = 8;
     const MAX_SUBSCRIBERS: usize = 8;
     const MAX_PUBLISHERS: usize = 2;
+    fn stamp_ns(&self) -> u64 {
+        self.stamp_ns
+    }
+}
+
+impl Topic for TruthMsg {
+    const NAME: &'static str = "world/truth";
+    const HISTORY: usize = 1;
+    // 20 Hz; the recorder reads every cycle.
+    const BUFFER: usize = 16;
+    const MAX_SUBSCRIBERS: usize = 4;
+    // The one simulated world.
+    const MAX_PUBLISHERS: usize = 1;
     fn stamp_ns(&self) -> u64 {
         self.stamp_ns
     }

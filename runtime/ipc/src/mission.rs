@@ -624,6 +624,30 @@ pub struct OperatorEnableMsg {
     pub reserved: u32,
 }
 
+/// Where the base really is (`world/truth`): published by the simulated world only, never
+/// read by an onboard process (the executive knows its estimate, not this). The recorder logs
+/// it, so that a HIL mission's log shows the estimate against the truth (`/world/truth`, and
+/// the `truth_base_link` frame in `/tf`).
+#[derive(Clone, Copy, Debug, PartialEq, ZeroCopySend)]
+#[repr(C)]
+#[type_name("grop_ipc::TruthMsg/v1")]
+pub struct TruthMsg {
+    /// Counter, increasing.
+    pub seq: u64,
+    /// Simulated time of the truth, runtime clock, nanoseconds.
+    pub stamp_ns: u64,
+    /// World x of the base's centre, metres.
+    pub x_m: f64,
+    /// World y, metres.
+    pub y_m: f64,
+    /// Heading, radians.
+    pub yaw_rad: f64,
+    /// Forward speed, m/s.
+    pub speed_mps: f64,
+    /// Yaw rate, rad/s.
+    pub yaw_rate_radps: f64,
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -639,6 +663,7 @@ mod tests {
         assert_eq!(size_of::<BasePoseMsg>(), 64);
         assert_eq!(size_of::<HeartbeatMsg>(), 32);
         assert_eq!(size_of::<OperatorEnableMsg>(), 24);
+        assert_eq!(size_of::<TruthMsg>(), 56);
     }
 
     #[test]

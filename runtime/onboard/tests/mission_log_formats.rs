@@ -6,8 +6,9 @@
 //! for version 2, written by the build before version 3 (commit 5cc3e9a9: no operator enable,
 //! no safety mode in `/arm/io`). `tests/data/mission-log-v3.mcap` is the same for version 3,
 //! written by the build before version 4 (commit d9b2c855: no channels in Foxglove's well-known
-//! schemas but the camera). They stay as they are; the reader and `grop replay` must keep
-//! reading them.
+//! schemas but the camera). `tests/data/mission-log-v4.mcap` is the same for version 4,
+//! written by the build before version 5 (commit 7f033219: no truth, no Psi's views). They stay
+//! as they are; the reader and `grop replay` must keep reading them.
 #![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failure panics with its message
 
 use std::path::{Path, PathBuf};
@@ -27,6 +28,7 @@ fn repo(path: &str) -> PathBuf {
 const V1: &str = "runtime/onboard/tests/data/mission-log-v1.mcap";
 const V2: &str = "runtime/onboard/tests/data/mission-log-v2.mcap";
 const V3: &str = "runtime/onboard/tests/data/mission-log-v3.mcap";
+const V4: &str = "runtime/onboard/tests/data/mission-log-v4.mcap";
 
 #[test]
 fn a_version_1_log_reads_and_every_message_decodes() {
@@ -41,6 +43,11 @@ fn a_version_2_log_reads_and_every_message_decodes() {
 #[test]
 fn a_version_3_log_reads_and_every_message_decodes() {
     reads_and_decodes(V3, 3);
+}
+
+#[test]
+fn a_version_4_log_reads_and_every_message_decodes() {
+    reads_and_decodes(V4, 4);
 }
 
 fn reads_and_decodes(path: &str, version: u32) {
@@ -143,6 +150,28 @@ fn grop_replay_runs_on_a_version_3_log_and_writes_the_foxglove_channels() {
             Some(schema),
             "{topic}"
         );
+    }
+}
+
+/// The replay of a version-4 log writes version 5: Psi's views of its decisions, which the old
+/// log lacks, and no truth (a replay has no world).
+#[test]
+fn grop_replay_runs_on_a_version_4_log_and_shows_psi_s_views() {
+    let old = MissionLog::read(&repo(V4)).expect("the old log reads");
+    assert_eq!(old.channel(Channel::PsiViews).count(), 0);
+    assert_eq!(old.channel(Channel::Truth).count(), 0);
+    let (_dir, replayed) = replays(V4);
+    let new = MissionLog::read(&replayed).expect("the replay's log reads");
+    let decisions = new.channel(Channel::Heatmaps).count();
+    assert!(decisions > 0, "no decision in the replay");
+    assert_eq!(new.channel(Channel::PsiViews).count(), decisions);
+    assert_eq!(new.channel(Channel::Truth).count(), 0);
+    for m in new.channel(Channel::PsiViews) {
+        let v: serde_json::Value = serde_json::from_slice(&m.data).expect("JSON");
+        if let Err(e) = foxglove::check(Channel::PsiViews.schema_name(), &v) {
+            panic!("/psi/views: {e}");
+        }
+        assert_eq!(v["width"], 130);
     }
 }
 

@@ -13,7 +13,7 @@ use can_bus::{CanFrame, CanId};
 use grop_ipc::{
     ArmIoMsg, ArmStateMsg, BasePoseMsg, BaseStateMsg, CameraFrameHeader, CameraFrameMsg, EventMsg,
     HEATMAP_COLS, HEATMAP_ROWS, HeartbeatMsg, HeatmapsMsg, LoadRequestMsg, MAX_HEATMAPS,
-    MAX_TASK_STEPS, OperatorEnableMsg, ReplanRequestMsg, TaskPlanMsg,
+    MAX_TASK_STEPS, OperatorEnableMsg, ReplanRequestMsg, TaskPlanMsg, TruthMsg,
 };
 use serde::{Deserialize, Serialize};
 use serde_json::{Value, json};
@@ -64,11 +64,17 @@ pub enum Channel {
     /// `/scan`: the range sensor's revolutions as the executive's collision monitor took them,
     /// one per second (`foxglove.PointCloud` in `base_link`; since 4).
     Scan,
+    /// `/world/truth`: where the simulated world's base really is (HIL only; the recorder logs
+    /// it, nothing onboard reads it; since `log_format` 5).
+    Truth,
+    /// `/psi/views`: the crops Psi saw for a decision beside its heatmaps, one row a location
+    /// (`foxglove.RawImage`; a view, since 5).
+    PsiViews,
 }
 
 impl Channel {
     /// All channels, in channel-id order.
-    pub const ALL: [Channel; 21] = [
+    pub const ALL: [Channel; 23] = [
         Channel::CameraFrame,
         Channel::Heatmaps,
         Channel::TaskPlan,
@@ -90,17 +96,20 @@ impl Channel {
         Channel::HeatmapGrid,
         Channel::EventLog,
         Channel::Scan,
+        Channel::Truth,
+        Channel::PsiViews,
     ];
 
     /// The channels in Foxglove's well-known schemas that the recorder derives from the others
     /// (`super::views`): a replay compares the messages they come from, not them.
-    pub const VIEWS: [Channel; 6] = [
+    pub const VIEWS: [Channel; 7] = [
         Channel::Tf,
         Channel::Scene,
         Channel::PlannedPath,
         Channel::DrivenPath,
         Channel::HeatmapGrid,
         Channel::EventLog,
+        Channel::PsiViews,
     ];
 
     /// Whether the recorder derives this channel from the others (see [`Channel::VIEWS`]).
@@ -132,6 +141,8 @@ impl Channel {
             Channel::HeatmapGrid => "/heatmaps/grid",
             Channel::EventLog => "/events/log",
             Channel::Scan => "/scan",
+            Channel::Truth => "/world/truth",
+            Channel::PsiViews => "/psi/views",
         }
     }
 
@@ -143,7 +154,7 @@ impl Channel {
     /// The schema's name.
     pub fn schema_name(self) -> &'static str {
         match self {
-            Channel::CameraFrame => "foxglove.RawImage",
+            Channel::CameraFrame | Channel::PsiViews => "foxglove.RawImage",
             Channel::Heatmaps => "grop.Heatmaps",
             Channel::TaskPlan => "grop.TaskPlan",
             Channel::PlanRequest => "grop.ReplanRequest",
@@ -163,6 +174,7 @@ impl Channel {
             Channel::HeatmapGrid => "foxglove.Grid",
             Channel::EventLog => "foxglove.Log",
             Channel::Scan => "foxglove.PointCloud",
+            Channel::Truth => "grop.Truth",
         }
     }
 
@@ -288,6 +300,13 @@ impl Channel {
                     "data": {"type": "array", "items": {"type": "integer"}, "maxItems": 8}
                 }),
             ),
+            Channel::Truth => (
+                "Where the simulated world's base really is (HIL only; read by nothing onboard)",
+                json!({
+                    "seq": int, "stamp_ns": int, "x_m": num, "y_m": num, "yaw_rad": num,
+                    "speed_mps": num, "yaw_rate_radps": num
+                }),
+            ),
             Channel::DecisionTiming => (
                 "Wall-clock time the planner took for a plan (a measurement, not behaviour)",
                 json!({"plan_id": int, "decision_us": int}),
@@ -298,7 +317,8 @@ impl Channel {
             | Channel::DrivenPath
             | Channel::HeatmapGrid
             | Channel::EventLog
-            | Channel::Scan => return super::foxglove::json_schema(self.schema_name()),
+            | Channel::Scan
+            | Channel::PsiViews => return super::foxglove::json_schema(self.schema_name()),
         };
         json!({
             "$schema": "https://json-schema.org/draft/2020-12/schema",
@@ -608,6 +628,44 @@ struct BasePoseJson {
     sigma_yaw_rad: f64,
 }
 
+#[derive(Serialize, Deserialize)]
+struct TruthJson {
+    seq: u64,
+    stamp_ns: u64,
+    x_m: f64,
+    y_m: f64,
+    yaw_rad: f64,
+    speed_mps: f64,
+    yaw_rate_radps: f64,
+}
+
+/// The simulated world's truth.
+pub fn encode_truth(m: &TruthMsg) -> Vec<u8> {
+    to_vec(&TruthJson {
+        seq: m.seq,
+        stamp_ns: m.stamp_ns,
+        x_m: m.x_m,
+        y_m: m.y_m,
+        yaw_rad: m.yaw_rad,
+        speed_mps: m.speed_mps,
+        yaw_rate_radps: m.yaw_rate_radps,
+    })
+}
+
+/// A logged truth, back as the message.
+pub fn decode_truth(data: &[u8]) -> Result<TruthMsg, DecodeError> {
+    let j: TruthJson = parse(Channel::Truth, data)?;
+    Ok(TruthMsg {
+        seq: j.seq,
+        stamp_ns: j.stamp_ns,
+        x_m: j.x_m,
+        y_m: j.y_m,
+        yaw_rad: j.yaw_rad,
+        speed_mps: j.speed_mps,
+        yaw_rate_radps: j.yaw_rate_radps,
+    })
+}
+
 /// A localisation fix.
 pub fn encode_base_pose(m: &BasePoseMsg) -> Vec<u8> {
     to_vec(&BasePoseJson {
@@ -854,122 +912,5 @@ pub fn decode_can(data: &[u8]) -> Result<CanFrame, DecodeError> {
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn every_channel_has_a_schema_that_is_an_object_schema() {
-        for c in Channel::ALL {
-            let s = c.schema();
-            assert_eq!(s["type"], "object", "{c:?}");
-            assert!(s["properties"].as_object().is_some_and(|p| !p.is_empty()));
-            assert_eq!(Channel::from_topic(c.topic()), Some(c));
-        }
-    }
-
-    #[test]
-    fn a_scan_is_a_foxglove_point_cloud_of_its_nearest_returns() {
-        let mut m = grop_ipc::ScanMsg {
-            seq: 1,
-            stamp_ns: 1_500_000_000,
-            points_m: [[0.0; 2]; grop_ipc::SCAN_BINS],
-        };
-        m.set_points([[1.0, 0.0], [0.0, 2.0], [0.0, 2.5]].into_iter());
-        let v: Value = serde_json::from_slice(&encode_scan(&m)).unwrap();
-        assert_eq!(
-            crate::mission_log::foxglove::check(Channel::Scan.schema_name(), &v),
-            Ok(())
-        );
-        assert_eq!(v["timestamp"], json!({"sec": 1, "nsec": 500_000_000}));
-        let data = BASE64.decode(v["data"].as_str().unwrap()).unwrap();
-        let f = |i: usize| f32::from_le_bytes(data[4 * i..4 * i + 4].try_into().unwrap());
-        assert_eq!(data.len(), 2 * 12);
-        assert_eq!((f(0), f(1), f(2)), (1.0, 0.0, 0.1));
-        assert_eq!((f(3), f(4)), (0.0, 2.0));
-    }
-
-    #[test]
-    fn inputs_round_trip_exactly() {
-        let fix = BasePoseMsg {
-            seq: 3,
-            stamp_ns: 123_456_789,
-            kind: 2,
-            reserved: 0,
-            x_m: 0.1 + 0.2,
-            y_m: -1.0 / 3.0,
-            yaw_rad: std::f64::consts::PI,
-            sigma_xy_m: 1e-9,
-            sigma_yaw_rad: 0.01,
-        };
-        assert_eq!(decode_base_pose(&encode_base_pose(&fix)).ok(), Some(fix));
-
-        let hb = HeartbeatMsg {
-            seq: 9,
-            stamp_ns: 5,
-            role: 3,
-            pid: 0,
-            overruns: 2,
-        };
-        assert_eq!(decode_health(&encode_health(&hb)).ok(), Some(hb));
-
-        for frame in [
-            CanFrame::new(CanId::standard(0x500).unwrap(), &[1, 2, 3, 4, 5, 6, 7, 8]).unwrap(),
-            CanFrame::new(CanId::extended(0x1234_5678).unwrap(), &[]).unwrap(),
-        ] {
-            assert_eq!(decode_can(&encode_can(&frame)).ok(), Some(frame));
-        }
-        assert!(decode_can(br#"{"id": 4096, "extended": false, "data": []}"#).is_err());
-        assert!(
-            decode_can(br#"{"id": 1, "extended": false, "data": [1,2,3,4,5,6,7,8,9]}"#).is_err()
-        );
-
-        let io = ArmIoMsg {
-            seq: 1,
-            stamp_ns: 2_000_000,
-            call: 1,
-            outcome: 0,
-            status: 0,
-            flags: 1,
-            robot_mode: 7,
-            reserved: 0,
-            joints_rad: [0.1, -1.2, 2.3, -0.4, 1.5e-7, 6.0],
-            joint_speeds_radps: [0.0; 6],
-            flange_pose: [0.3, 0.2, 0.1, 0.0, 3.0, 0.0],
-        };
-        assert_eq!(decode_arm_io(&encode_arm_io(&io)).ok(), Some(io));
-        let mut bad = io;
-        bad.call = 99;
-        assert!(decode_arm_io(&encode_arm_io(&bad)).is_err());
-    }
-
-    #[test]
-    fn camera_frames_round_trip_and_bad_ones_are_named() {
-        let mut frame: Box<CameraFrameMsg> = CameraFrameMsg::boxed_zeroed();
-        let mut header = CameraFrameHeader {
-            frame_id: 7,
-            stamp_ns: 1_500_000_000,
-            width_px: 640,
-            height_px: 480,
-            pixel_format: 0,
-            row_stride_bytes: 640 * 3,
-            metres_per_px: 0.0125,
-            left_x_m: -0.5,
-            top_y_m: 6.0,
-        };
-        header.set_pixel_format(grop_ipc::PixelFormat::Rgb8);
-        let pixels: Vec<u8> = (0..640 * 480 * 3).map(|i| (i * 7 % 251) as u8).collect();
-        frame.set_image(header, &pixels).unwrap();
-        let data = encode_camera(&frame);
-        assert_eq!(camera_frame_id(&data).unwrap(), 7);
-        let mut back = CameraFrameMsg::boxed_zeroed();
-        decode_camera_into(&data, &mut back).unwrap();
-        assert_eq!(back.header, frame.header);
-        assert_eq!(back.image().unwrap(), frame.image().unwrap());
-
-        let text = String::from_utf8(data)
-            .unwrap()
-            .replace("\"rgb8\"", "\"bgr16\"");
-        let err = decode_camera_into(text.as_bytes(), &mut back).unwrap_err();
-        assert!(err.to_string().contains("bgr16"), "{err}");
-    }
-}
+#[path = "codec_tests.rs"]
+mod tests;

@@ -398,6 +398,25 @@ pub struct PointCloud {
     pub data: String,
 }
 
+/// `foxglove.RawImage`: rows of pixels, `step` bytes each.
+#[derive(Serialize, Clone, Debug, PartialEq)]
+pub struct RawImage {
+    /// When.
+    pub timestamp: Time,
+    /// Frame of the camera (for the 3D panel; an image no camera took names none).
+    pub frame_id: String,
+    /// Pixels across.
+    pub width: u32,
+    /// Pixels down.
+    pub height: u32,
+    /// `rgb8`, `mono8`, ...
+    pub encoding: String,
+    /// Bytes per row.
+    pub step: u32,
+    /// The pixels (base64).
+    pub data: String,
+}
+
 /// `foxglove.Log`.
 #[derive(Serialize, Clone, Debug, PartialEq)]
 pub struct Log {

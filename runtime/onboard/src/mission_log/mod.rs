@@ -3,7 +3,8 @@
 //!
 //! - [`codec`]: each topic as JSON with a JSON Schema (the camera as `foxglove.RawImage`);
 //! - [`views`]: channels in Foxglove's well-known schemas ([`foxglove`]) that the recorder
-//!   derives from the others: frames, scene, paths, heatmaps over the floor, events as log;
+//!   derives from the others: frames, scene, paths, heatmaps over the floor, events as log,
+//!   Psi's views ([`psi_views`]);
 //! - [`writer`]: a bounded queue in front of an MCAP writer thread (zstd chunks);
 //! - [`recorder`]: what the recorder does each cycle: drain every topic and the CAN bus;
 //! - [`reader`]: reading a log back, and the digest that compares two runs;
@@ -22,6 +23,7 @@ pub use codec::Channel;
 pub use reader::{LoggedMessage, MissionLog, digest};
 pub use recorder::{Recorder, RecorderConfig};
 
+pub mod psi_views;
 pub mod replay;
 pub mod views;
 pub use views::Views;
@@ -35,7 +37,7 @@ pub const LOG_METADATA: &str = "grop.log";
 /// a channel added, removed or renamed. A log without it is version 1. The reader and
 /// `grop replay` read every version from [`OLDEST_LOG_FORMAT`] up to this one (docs/logs.md has
 /// the history of the versions).
-pub const LOG_FORMAT: u32 = 4;
+pub const LOG_FORMAT: u32 = 5;
 /// The oldest format version this build reads.
 pub const OLDEST_LOG_FORMAT: u32 = 1;
 

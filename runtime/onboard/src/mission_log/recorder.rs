@@ -55,6 +55,7 @@ struct Subs {
     health: TopicSubscriber<HeartbeatMsg>,
     enables: TopicSubscriber<grop_ipc::OperatorEnableMsg>,
     scans: TopicSubscriber<grop_ipc::ScanMsg>,
+    truth: TopicSubscriber<grop_ipc::TruthMsg>,
 }
 
 /// A message taken from a topic: its sort key, its encoding and a copy.
@@ -118,6 +119,7 @@ impl Recorder {
                 health: node.subscriber().map_err(port)?,
                 enables: node.subscriber().map_err(port)?,
                 scans: node.subscriber().map_err(port)?,
+                truth: node.subscriber().map_err(port)?,
             },
             bus,
             writer,
@@ -303,7 +305,17 @@ impl Recorder {
             }
             due
         });
+        // The simulated world's truth (HIL only), as it came.
+        let mut truth = Self::take(
+            &self.subs.truth,
+            e,
+            |m| (m.stamp_ns, m.seq),
+            codec::encode_truth,
+        );
         if let Some(views) = &mut self.views {
+            for t in &truth {
+                views.truth(&t.msg);
+            }
             for t in &arm {
                 views.arm_state(&t.msg);
             }
@@ -325,6 +337,7 @@ impl Recorder {
         n += self.emit_batch(Channel::LoadRequest, now_ns, &mut loads);
         n += self.emit_batch(Channel::Events, now_ns, &mut events);
         n += self.emit_batch(Channel::Scan, now_ns, &mut scans);
+        n += self.emit_batch(Channel::Truth, now_ns, &mut truth);
         if let Some(bus) = self.bus.as_mut() {
             loop {
                 match bus.try_recv() {
@@ -430,6 +443,9 @@ impl Recorder {
             if due {
                 self.last_camera_stamp = Some(stamp);
                 self.mark_logged(frame.header.frame_id);
+                if let Some(views) = &mut self.views {
+                    views.camera(&frame);
+                }
                 Self::emit(
                     &self.writer,
                     &mut self.live,
@@ -482,6 +498,9 @@ impl Recorder {
         if let Some(i) = self.held.iter().position(|h| h.frame_id == frame_id) {
             if let Some(h) = self.held.remove(i) {
                 self.mark_logged(frame_id);
+                if let Some(views) = &mut self.views {
+                    views.camera(&h.msg);
+                }
                 Self::emit(
                     &self.writer,
                     &mut self.live,

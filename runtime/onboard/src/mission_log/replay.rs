@@ -168,9 +168,12 @@ pub struct ReplayOptions {
 /// under `/timing/`, not the views in Foxglove's schemas (`Channel::is_view`), which the
 /// recorder derives from the compared messages (and which logs before `log_format` 4 lack), and
 /// not the range sensor's revolutions (`/scan`): the sensor's packets are not in the log, so the
-/// replayed executive runs without it.
+/// replayed executive runs without it; and not the simulated world's truth (`/world/truth`),
+/// which no onboard process reads and a replay has no world to make.
 pub fn compared(m: &LoggedMessage) -> bool {
-    !m.channel.topic().starts_with("/timing/") && !m.channel.is_view() && m.channel != Channel::Scan
+    !m.channel.topic().starts_with("/timing/")
+        && !m.channel.is_view()
+        && !matches!(m.channel, Channel::Scan | Channel::Truth)
 }
 
 fn is_world_input(m: &LoggedMessage) -> bool {

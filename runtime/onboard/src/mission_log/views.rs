@@ -22,11 +22,17 @@
 //!   location of a decision over the floor, one float32 `success` per 6.25 cm cell (the most of
 //!   the locations that cover it; NaN where none does).
 //! - `/events/log` (`foxglove.Log`, per event): each event with a level, its source as the name.
+//! - `/psi/views` (`foxglove.RawImage`, per heatmaps message): the crops Psi saw, cut again
+//!   from the logged frame the decision used, beside its heatmaps (`super::psi_views`).
+//! - In a HIL mission, the world's truth (`/world/truth`, logged as it came) adds the frame
+//!   `map -> truth_base_link` to `/tf` and a ghost of the body on it to `/scene`, so the 3D
+//!   panel shows the estimate against where the base really is.
 
 use base64::Engine as _;
 use base64::engine::general_purpose::STANDARD as BASE64;
 use grop_ipc::{
-    ArmStateMsg, BaseStateMsg, EventKind, EventMsg, HeatmapsMsg, TaskPlanMsg, TaskStepKind,
+    ArmStateMsg, BaseStateMsg, CameraFrameMsg, EventKind, EventMsg, HeatmapsMsg, TaskPlanMsg,
+    TaskStepKind, TruthMsg,
 };
 use nalgebra::Isometry3;
 use serde::Serialize;
@@ -39,6 +45,7 @@ use super::foxglove::{
     FrameTransforms, Grid, LinePrimitive, Log, PackedElementField, Pose, PosesInFrame, Quaternion,
     SceneEntity, SceneUpdate, SpherePrimitive, TextPrimitive, Time, Vector2, level, rgba, v3,
 };
+use super::psi_views::PsiViews;
 use crate::localisation::{PlanarPose, wrap};
 
 /// The fixed frame.
@@ -47,6 +54,8 @@ pub const MAP: &str = "map";
 pub const ODOM: &str = "odom";
 /// The base (centre of its footprint, on the floor).
 pub const BASE: &str = "base_link";
+/// Where the base really is (HIL only: the simulated world's truth).
+pub const TRUTH: &str = "truth_base_link";
 /// The arm's base (under joint 1).
 pub const ARM_BASE: &str = "arm_base";
 /// The arm's DH frames 1..=6 (`arm_link6` is the tool flange).
@@ -129,6 +138,9 @@ pub struct Views {
     objects: Vec<ObjectState>,
     on_tray: u64,
     scene_changed: bool,
+    /// The world's newest truth (HIL only).
+    truth: Option<PlanarPose>,
+    psi: PsiViews,
     out: Vec<(Channel, u64, Vec<u8>)>,
 }
 
@@ -235,8 +247,32 @@ impl Views {
             objects,
             on_tray: 0,
             scene_changed: true,
+            truth: None,
+            psi: PsiViews::default(),
             out: Vec::new(),
         }
+    }
+
+    /// A camera frame the recorder logs (kept for the `/psi/views` of the decisions naming it).
+    pub fn camera(&mut self, m: &CameraFrameMsg) {
+        self.psi.frame(m);
+    }
+
+    /// The simulated world's truth: the `truth_base_link` frame from the next `/tf` on.
+    pub fn truth(&mut self, m: &TruthMsg) {
+        let p = PlanarPose::new(m.x_m, m.y_m, m.yaw_rad);
+        if p.is_finite() {
+            if self.truth.is_none() {
+                // The ghost body joins the scene.
+                self.scene_changed = true;
+            }
+            self.truth = Some(p);
+        }
+    }
+
+    /// Decisions whose `/psi/views` image could not be made (their frame was not kept).
+    pub fn psi_views_missed(&self) -> u64 {
+        self.psi.missed
     }
 
     /// The arm's state: its joints move the arm's frames.
@@ -319,6 +355,9 @@ impl Views {
                 transforms.push(transform(t, parent, child, &local));
                 parent = child;
             }
+        }
+        if let Some(truth) = &self.truth {
+            transforms.push(planar_transform(t, MAP, TRUTH, truth));
         }
         self.out.push((
             Channel::Tf,
@@ -453,8 +492,10 @@ impl Views {
         self.out.push((Channel::EventLog, m.stamp_ns, to_vec(&log)));
     }
 
-    /// Psi's heatmaps: one grid over the floor.
+    /// Psi's heatmaps: one grid over the floor, and the views Psi saw (made in
+    /// [`Views::take`], once the frame they were cut from is in).
     pub fn heatmaps(&mut self, m: &HeatmapsMsg) {
+        self.psi.heatmaps(m);
         let Ok(locations) = m.locations() else {
             return;
         };
@@ -699,6 +740,22 @@ impl Views {
             }
         }
         entities.push(body);
+        if self.truth.is_some() {
+            let mut ghost = SceneEntity::new(t, TRUTH, "robot/truth".to_owned());
+            ghost.frame_locked = true;
+            ghost.cubes.push(cube(
+                0.0,
+                0.0,
+                0.5 * hb,
+                0.0,
+                [l, w, hb],
+                rgba(60, 220, 120, 0.35),
+            ));
+            ghost
+                .texts
+                .push(label(0.0, 0.0, hb + 0.3, "truth".to_owned()));
+            entities.push(ghost);
+        }
         for link in ARM_LINKS {
             let mut e = SceneEntity::new(t, link, format!("robot/{link}"));
             e.frame_locked = true;
@@ -715,6 +772,9 @@ impl Views {
     /// What to log now (log time `now_ns`), in the order it was made; the scene last when it
     /// changed.
     pub fn take(&mut self, now_ns: u64) -> Vec<(Channel, u64, Vec<u8>)> {
+        for (stamp, image) in self.psi.take(&self.scene.room) {
+            self.out.push((Channel::PsiViews, stamp, to_vec(&image)));
+        }
         if self.scene_changed {
             self.scene_changed = false;
             let scene = self.scene_update(now_ns);

@@ -60,6 +60,8 @@ fn views_of_a_mission() -> Vec<(Channel, u64, Vec<u8>)> {
     scene.chairs.push(world::Chair::new(2.0, 5.2, 1.57));
     let mut v = Views::new(scene.clone(), &RobotConfig::default());
     let mut out = v.take(0);
+    v.camera(&frame_of(&scene, 1));
+    v.truth(&truth(0, 0.05));
     v.arm_state(&ArmStateMsg {
         joints_rad: [0.1, -1.2, 1.0, -1.4, -1.57, 0.0],
         ..arm_msg()
@@ -94,6 +96,30 @@ fn views_of_a_mission() -> Vec<(Channel, u64, Vec<u8>)> {
     v.event(&placed);
     out.extend(v.take(4_000_000_000));
     out
+}
+
+/// The camera frame `frame_id` of `scene`, as the world renders it.
+fn frame_of(scene: &Scene, frame_id: u64) -> Box<CameraFrameMsg> {
+    let camera = world::camera::OverheadCamera::fitting_room(scene);
+    let layout = world::camera::FrameLayout::rgb8(camera);
+    let header = grop_ipc::CameraFrameHeader::for_layout(frame_id, 0, &layout);
+    let mut pixels = vec![0u8; header.checked_len().unwrap()];
+    world::camera::render_frame(scene, &camera, &mut pixels).unwrap();
+    let mut m = CameraFrameMsg::boxed_zeroed();
+    m.set_image(header, &pixels).unwrap();
+    m
+}
+
+fn truth(stamp_ns: u64, x: f64) -> TruthMsg {
+    TruthMsg {
+        seq: 1,
+        stamp_ns,
+        x_m: x,
+        y_m: 1.02,
+        yaw_rad: 0.48,
+        speed_mps: 0.0,
+        yaw_rate_radps: 0.0,
+    }
 }
 
 fn arm_msg() -> ArmStateMsg {
@@ -152,6 +178,10 @@ fn the_views_say_what_happened() {
     assert_eq!(pairs[1], ("odom".into(), "base_link".into()));
     assert_eq!(pairs[2], ("base_link".into(), "arm_base".into()));
     assert_eq!(pairs[8], ("arm_link5".into(), "arm_link6".into()));
+    // The world's truth, beside the estimate (HIL): its own frame, straight off the map.
+    assert_eq!(pairs[9], ("map".into(), "truth_base_link".into()));
+    assert_eq!(tf["transforms"][9]["translation"]["x"], 0.05);
+    assert_eq!(tf["transforms"][9]["translation"]["y"], 1.02);
     // map -> odom -> base_link is the estimate.
     let t = |i: usize, k: &str| tf["transforms"][i]["translation"][k].as_f64().unwrap();
     let q = |i: usize| {
@@ -187,6 +217,7 @@ fn the_views_say_what_happened() {
     assert_eq!(entity("target/0")["texts"][0]["text"], "0 placed");
     assert_eq!(entity("target/0")["metadata"][0]["value"], "placed");
     assert_eq!(entity("robot/base")["cubes"].as_array().unwrap().len(), 1);
+    assert_eq!(entity("robot/truth")["frame_id"], "truth_base_link");
     assert_eq!(
         entity("standing_spots")["arrows"].as_array().unwrap().len(),
         1
@@ -321,4 +352,84 @@ fn a_wrong_field_is_named() {
         check("foxglove.Pose", &pose),
         Err("Pose.position.z: missing".to_owned())
     );
+}
+
+/// `/psi/views`: each location's crop is the planner's own cut of the decision's frame, and
+/// beside it the heatmap in the heat colours; a decision whose frame was not logged gets none.
+#[test]
+fn psi_s_views_are_the_cut_crops_beside_their_heatmaps() {
+    let out = views_of_a_mission();
+    let (_, stamp, data) = out
+        .iter()
+        .find(|(c, _, _)| *c == Channel::PsiViews)
+        .unwrap();
+    assert_eq!(*stamp, 10, "stamped as the heatmaps");
+    let image: Value = serde_json::from_slice(data).unwrap();
+    let (w, h) = (2 * 64 + 2, 2 * 32 + 2);
+    assert_eq!(
+        (image["width"].as_u64(), image["height"].as_u64()),
+        (Some(w), Some(h))
+    );
+    assert_eq!(image["encoding"], "rgb8");
+    let rgb = BASE64.decode(image["data"].as_str().unwrap()).unwrap();
+    let (w, h) = (w as usize, h as usize);
+    assert_eq!(rgb.len(), w * h * 3);
+    let px = |x: usize, y: usize| {
+        [
+            rgb[3 * (y * w + x)],
+            rgb[3 * (y * w + x) + 1],
+            rgb[3 * (y * w + x) + 2],
+        ]
+    };
+    // The same scene and frame as the mission's; the planner's cut of both locations.
+    let mut scene = Scene::empty_paper_room();
+    scene.targets.push(world::UnloadTarget::on_center_line(2.0));
+    scene.chairs.push(world::Chair::new(2.0, 5.2, 1.57));
+    let frame = frame_of(&scene, 1);
+    let layout = frame.header.layout().unwrap();
+    let mut crops = [[0u8; 2048]; 2];
+    world::camera::cut_views(
+        frame.image().unwrap(),
+        &layout,
+        &[(2.0, Side::Near), (2.0, Side::Far)],
+        &mut crops,
+    )
+    .unwrap();
+    let heat = world::view::heat_colour(0.25).0;
+    for (k, crop) in crops.iter().enumerate() {
+        let top = k * 34;
+        for r in 0..32 {
+            for c in 0..64 {
+                let g = crop[r * 64 + c];
+                assert_eq!(px(c, top + r), [g, g, g], "location {k}, cell ({r}, {c})");
+                assert_eq!(px(66 + c, top + r), heat, "location {k}, heat ({r}, {c})");
+            }
+        }
+    }
+    // The near crop shows the chair (white) next to the table (its top row is the table edge).
+    assert!(crops[0].contains(&world::view::CHAIR_GRAY));
+    assert_eq!(crops[0][32], world::view::TABLE_GRAY);
+
+    // Heatmaps naming a frame that never came: no image, counted.
+    let mut v = Views::new(scene.clone(), &RobotConfig::default());
+    v.camera(&frame_of(&scene, 7));
+    let mut maps = Box::new(HeatmapsMsg {
+        stamp_ns: 10,
+        source_frame_id: 8,
+        count: 1,
+        reserved: 0,
+        locations: [LocationHeatmap {
+            object_index: 0,
+            side: 1,
+            target_m: scene.targets[0].as_array(),
+            feasibility: 0.8,
+            values: [0.5; HEATMAP_ROWS * HEATMAP_COLS],
+        }; MAX_HEATMAPS],
+    });
+    v.heatmaps(&maps);
+    assert!(!v.take(1).iter().any(|(c, _, _)| *c == Channel::PsiViews));
+    assert_eq!(v.psi_views_missed(), 1);
+    maps.source_frame_id = 7;
+    v.heatmaps(&maps);
+    assert!(v.take(2).iter().any(|(c, _, _)| *c == Channel::PsiViews));
 }
