@@ -297,6 +297,13 @@ impl Harness {
                 });
                 steps.clear();
             }
+            // What the planner node writes into every plan: how the base docks and backs out.
+            grop_onboard::docking::Docking::new(self.scene.clone(), &RobotConfig::default())
+                .annotate(
+                    &mut steps,
+                    req.pose,
+                    req.flags & grop_ipc::REQUEST_AT_TABLE != 0,
+                );
             let id = req.request_id;
             self.plans
                 .publish_with(|p| {

@@ -63,6 +63,7 @@ fn one(namespace: &str) -> anyhow::Result<Duration> {
     let mut scene = world::Scene::empty_paper_room();
     scene.targets = vec![world::UnloadTarget::on_center_line(0.0)];
     let robot = world::RobotConfig::default();
+    let docking = grop_onboard::docking::Docking::new(scene.clone(), &robot);
     let exec_node = IpcNode::new(namespace, "executive")?;
     let node = IpcNode::new(namespace, "harness")?;
     let mut exec = Executive::new(
@@ -126,10 +127,17 @@ fn one(namespace: &str) -> anyhow::Result<Duration> {
         while let Some(req) = requests.try_recv()? {
             if plan_at.is_none() && exec.state() == MissionState::Running {
                 let id = req.request_id;
-                let steps = [
+                let mut steps = [
                     TaskStep::navigate(goal[0], goal[1], goal[2], 3.0),
                     TaskStep::unload(0, TableSide::Near, target, goal, 0.9),
                 ];
+                // As the planner node does: how the base docks (the path goes to the
+                // pre-goal).
+                docking.annotate(
+                    &mut steps,
+                    req.pose,
+                    req.flags & grop_ipc::REQUEST_AT_TABLE != 0,
+                );
                 let published = clock.now();
                 plans.publish_with(|p| {
                     p.plan_id = 1;

@@ -69,8 +69,8 @@ pub use messages::{
 pub use mission::{
     BasePoseMsg, HEATMAP_COLS, HEATMAP_ROWS, HeartbeatMsg, HeatmapsMsg, LoadRequestMsg,
     LocationHeatmap, MAX_HEATMAPS, MAX_TASK_OBJECTS, MAX_TASK_STEPS, OperatorEnableMsg,
-    PoseFixKind, ProcessRole, ReplanReason, ReplanRequestMsg, TaskPlanMsg, TaskStep, TaskStepKind,
-    TruthMsg,
+    PoseFixKind, ProcessRole, REQUEST_AT_TABLE, ReplanReason, ReplanRequestMsg, TaskPlanMsg,
+    TaskStep, TaskStepKind, TruthMsg,
 };
 pub use port::{
     FrameError, IpcNode, NodeError, PortError, PublishError, ReceiveError, Received,

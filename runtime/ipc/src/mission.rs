@@ -50,7 +50,7 @@ impl TaskStepKind {
 /// One step of a task plan.
 #[derive(Clone, Copy, Debug, PartialEq, ZeroCopySend)]
 #[repr(C)]
-#[type_name("grop_ipc::TaskStep/v2")]
+#[type_name("grop_ipc::TaskStep/v3")]
 pub struct TaskStep {
     /// [`TaskStepKind`] as an integer; read with [`TaskStep::kind`].
     pub kind: u32,
@@ -74,6 +74,14 @@ pub struct TaskStep {
     pub feasibility: f64,
     /// Travel time of the leg that ends here (navigate), seconds.
     pub travel_cost_s: f64,
+    /// Docking (navigate): > 0, the goal is docked: the path ends this far straight behind it
+    /// (m, against `yaw_rad`), where the base turns, then drives straight in; 0, the goal is
+    /// not docked; negative, a goal next to a table with no straight way in on the map (the
+    /// executive fails the leg before it drives). Planned with the map by the planner node.
+    pub approach_m: f64,
+    /// Backing out (navigate): before the leg's path, the base backs straight out this far
+    /// (m) from where it stands at a table; 0, it does not.
+    pub back_out_m: f64,
 }
 
 impl TaskStep {
@@ -128,6 +136,8 @@ impl TaskStep {
             target_m: [0.0; 3],
             feasibility: 0.0,
             travel_cost_s: 0.0,
+            approach_m: 0.0,
+            back_out_m: 0.0,
         }
     }
 
@@ -164,6 +174,8 @@ impl TaskStep {
             self.yaw_rad,
             self.feasibility,
             self.travel_cost_s,
+            self.approach_m,
+            self.back_out_m,
         ]
         .iter()
         .chain(self.target_m.iter())
@@ -175,7 +187,7 @@ impl TaskStep {
 /// (paper eq. 1) as the executive runs it, with load steps and room for whole table settings.
 #[derive(Clone, Copy, Debug, PartialEq, ZeroCopySend)]
 #[repr(C)]
-#[type_name("grop_ipc::TaskPlanMsg/v2")]
+#[type_name("grop_ipc::TaskPlanMsg/v3")]
 pub struct TaskPlanMsg {
     /// Plan counter; a replan gets a new id.
     pub plan_id: u64,
@@ -279,7 +291,7 @@ impl ReplanReason {
 /// The executive asks the planning node for a plan (`plan/request`).
 #[derive(Clone, Copy, Debug, PartialEq, ZeroCopySend)]
 #[repr(C)]
-#[type_name("grop_ipc::ReplanRequestMsg/v1")]
+#[type_name("grop_ipc::ReplanRequestMsg/v2")]
 pub struct ReplanRequestMsg {
     /// Request counter of the executive, increasing from 1.
     pub request_id: u64,
@@ -297,11 +309,15 @@ pub struct ReplanRequestMsg {
     pub pose: [f64; 3],
     /// Side of the failed unload (+1 near, -1 far, 0 none).
     pub failed_side: i32,
-    /// Zero.
-    pub reserved: u32,
+    /// [`REQUEST_AT_TABLE`] and zeros.
+    pub flags: u32,
     /// Navigation goal of the failed unload, world x, y (m).
     pub failed_goal_m: [f64; 2],
 }
+
+/// [`ReplanRequestMsg::flags`]: the base stands at a table (it just loaded or unloaded, or the
+/// collision monitor held it in front of something): the plan's first leg backs out first.
+pub const REQUEST_AT_TABLE: u32 = 1;
 
 impl ReplanRequestMsg {
     /// The reason, checked.
@@ -655,8 +671,8 @@ mod tests {
     /// The layouts are the protocol between processes: a change must bump the `/vN` type names.
     #[test]
     fn wire_sizes_are_fixed() {
-        assert_eq!(size_of::<TaskStep>(), 88);
-        assert_eq!(size_of::<TaskPlanMsg>(), 80 + 88 * MAX_TASK_STEPS);
+        assert_eq!(size_of::<TaskStep>(), 104);
+        assert_eq!(size_of::<TaskPlanMsg>(), 80 + 104 * MAX_TASK_STEPS);
         assert_eq!(size_of::<ReplanRequestMsg>(), 88);
         assert_eq!(size_of::<LoadRequestMsg>(), 56);
         assert_eq!(size_of::<LocationHeatmap>(), 40 + 4 * 2048);

@@ -6,6 +6,7 @@
 //! file and the runtime clock; neither links a simulator (a test checks the dependency tree).
 
 pub mod deployment;
+pub mod docking;
 pub mod executive;
 pub mod localisation;
 pub mod mission_log;

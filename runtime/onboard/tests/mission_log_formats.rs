@@ -7,8 +7,10 @@
 //! no safety mode in `/arm/io`). `tests/data/mission-log-v3.mcap` is the same for version 3,
 //! written by the build before version 4 (commit d9b2c855: no channels in Foxglove's well-known
 //! schemas but the camera). `tests/data/mission-log-v4.mcap` is the same for version 4,
-//! written by the build before version 5 (commit 7f033219: no truth, no Psi's views). They stay
-//! as they are; the reader and `grop replay` must keep reading them.
+//! written by the build before version 5 (commit 7f033219: no truth, no Psi's views), and
+//! `tests/data/mission-log-v5.mcap` for version 5, written by the build before version 6
+//! (commit 54393696: no docking in the plans' steps). They stay as they are; the reader and
+//! `grop replay` must keep reading them.
 #![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failure panics with its message
 
 use std::path::{Path, PathBuf};
@@ -29,6 +31,7 @@ const V1: &str = "runtime/onboard/tests/data/mission-log-v1.mcap";
 const V2: &str = "runtime/onboard/tests/data/mission-log-v2.mcap";
 const V3: &str = "runtime/onboard/tests/data/mission-log-v3.mcap";
 const V4: &str = "runtime/onboard/tests/data/mission-log-v4.mcap";
+const V5: &str = "runtime/onboard/tests/data/mission-log-v5.mcap";
 
 #[test]
 fn a_version_1_log_reads_and_every_message_decodes() {
@@ -48,6 +51,11 @@ fn a_version_3_log_reads_and_every_message_decodes() {
 #[test]
 fn a_version_4_log_reads_and_every_message_decodes() {
     reads_and_decodes(V4, 4);
+}
+
+#[test]
+fn a_version_5_log_reads_and_every_message_decodes() {
+    reads_and_decodes(V5, 5);
 }
 
 fn reads_and_decodes(path: &str, version: u32) {
@@ -153,8 +161,8 @@ fn grop_replay_runs_on_a_version_3_log_and_writes_the_foxglove_channels() {
     }
 }
 
-/// The replay of a version-4 log writes version 5: Psi's views of its decisions, which the old
-/// log lacks, and no truth (a replay has no world).
+/// The replay of a version-4 log writes this build's version: Psi's views of its decisions,
+/// which the old log lacks, and no truth (a replay has no world).
 #[test]
 fn grop_replay_runs_on_a_version_4_log_and_shows_psi_s_views() {
     let old = MissionLog::read(&repo(V4)).expect("the old log reads");
@@ -173,6 +181,28 @@ fn grop_replay_runs_on_a_version_4_log_and_shows_psi_s_views() {
         }
         assert_eq!(v["width"], 130);
     }
+}
+
+/// The replay of a version-5 log: the replayed planner writes how the base docks into its
+/// plans' steps (the old plans have no `approach_m`), and the replayed executive follows them.
+#[test]
+fn grop_replay_runs_on_a_version_5_log_and_its_plans_say_how_to_dock() {
+    let old = MissionLog::read(&repo(V5)).expect("the old log reads");
+    for m in old.channel(Channel::TaskPlan) {
+        assert!(!String::from_utf8_lossy(&m.data).contains("approach_m"));
+    }
+    let (_dir, replayed) = replays(V5);
+    let new = MissionLog::read(&replayed).expect("the replay's log reads");
+    let mut docked = 0;
+    for m in new.channel(Channel::TaskPlan) {
+        let v: serde_json::Value = serde_json::from_slice(&m.data).expect("JSON");
+        for step in v["steps"].as_array().expect("steps") {
+            if step["approach_m"].as_f64().expect("approach_m") > 0.0 {
+                docked += 1;
+            }
+        }
+    }
+    assert!(docked > 0, "no docked goal in the replay's plans");
 }
 
 /// The replay of a log from before the operator's enable existed gives one itself: its

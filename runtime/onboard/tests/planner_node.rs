@@ -96,7 +96,7 @@ fn request(id: u64, reason: ReplanReason, pose: [f64; 3], remaining: u64) -> Rep
         on_board_mask: 0,
         pose,
         failed_side: 0,
-        reserved: 0,
+        flags: 0,
         failed_goal_m: [0.0; 2],
     };
     r.set_reason(reason);

@@ -1,6 +1,10 @@
 //! The legs of a mission: back out from the table, ask for the path, follow it, turn to the
 //! goal heading, settle, and dock straight in at a table goal. Part of [`MissionCore`]: each
 //! phase reads the cycle's inputs and writes the velocity and worker jobs into its outputs.
+//!
+//! How far to back out, where to dock and from how far are the plan's (`TaskStep::back_out_m`,
+//! `approach_m`: the planner works them out on the map, `crate::docking`); the executive
+//! follows them and moves a docking goal only because of what its range sensor shows.
 
 use std::time::Duration;
 
@@ -12,6 +16,7 @@ use super::AbortReason;
 use super::cycle::{CycleInputs, CycleOutputs};
 use super::mission::{MissionCore, Phase};
 use super::worker::{Answer, Job, PathFailure, SeenPoints};
+use crate::docking::{DOCK_SHIFTS_M, DOCKING_LINE_MARGIN_M};
 use crate::localisation::{PlanarPose, wrap};
 
 /// Legs that may fail in a row before the mission is given up.
@@ -20,35 +25,10 @@ pub const MAX_FAILED_LEGS: u32 = 3;
 /// Backing-out speed from the table, m/s.
 pub const REVERSE_SPEED_MPS: f32 = 0.15;
 
-/// Docking / back-out distances tried, longest first, m: the base turns at the pre-goal this
-/// far behind a table goal, then drives straight in.
-pub const DOCKING_DISTANCES_M: [f64; 5] = [1.0, 0.75, 0.45, 0.3, 0.15];
-
 /// At least the last this many metres to a docking goal (and the first ones backing out) use
 /// the collision monitor's docking shape at crawl speed; a longer straight stretch, checked
 /// free with [`DOCKING_LINE_MARGIN_M`], uses it all the way.
 pub const DOCKING_SHAPE_RANGE_M: f64 = 0.5;
-
-/// Margin around the footprint for the straight docking line at the goal's heading (m): the
-/// monitor's docking shape.
-pub const DOCKING_LINE_MARGIN_M: f64 = 0.01;
-
-/// Margin around the footprint for a sound docking line (m): the monitor's docking shape plus
-/// three sigmas of the range sensor's noise, so passing furniture does not trip the monitor.
-/// Lines this free are preferred, a few centimetres along the table if need be
-/// ([`DOCK_SHIFTS_M`]); a line free only by [`DOCKING_LINE_MARGIN_M`] is the fallback.
-pub const SOUND_LINE_MARGIN_M: f64 = 0.04;
-
-/// Sideways shifts of a docking goal tried, nearest first (m, across the goal's heading): the
-/// arm plans from the pose the base reaches, so a few centimetres along the table cost nothing
-/// and can buy a clear line in past a chair.
-pub const DOCK_SHIFTS_M: [f64; 11] = [
-    0.0, 0.02, -0.02, 0.04, -0.04, 0.06, -0.06, 0.08, -0.08, 0.1, -0.1,
-];
-
-/// Margin around the footprint for turning in place at a pre-goal (m): the monitor's stop zone
-/// plus a few centimetres of localisation error.
-pub const TURN_MARGIN_M: f64 = 0.06;
 
 /// How often a blocked way in to a standing spot is looked at again while the base waits.
 const DOCK_RECHECK: Duration = Duration::from_millis(200);
@@ -228,8 +208,9 @@ impl MissionCore {
         }
     }
 
-    /// Starts a leg: back out from the table first if the robot stands at it, then ask for the
-    /// path (to a pre-goal in front of a table goal, see [`Self::request_path`]).
+    /// Starts a leg: back straight out first as far as the plan says (from a table: turning in
+    /// place next to it would sweep the footprint into it), then ask for the path (to the
+    /// pre-goal in front of a docked goal, see [`Self::request_path`]).
     fn start_leg(
         &mut self,
         step: &TaskStep,
@@ -237,28 +218,23 @@ impl MissionCore {
         now: Duration,
         outputs: &mut CycleOutputs,
     ) -> Option<Phase> {
-        if std::mem::take(&mut self.at_table) {
-            // Straight back, away from the table, as far as the map allows (up to the docking
-            // distance): turning in place next to the table would sweep the footprint into it.
-            // The same rule as docking's: straight back to where a turn in place is free.
-            let distance_m = self
-                .free_stretch(pose.x_m, pose.y_m, pose.yaw_rad)
-                .unwrap_or(0.0);
-            if distance_m > 0.0 {
-                return Some(Phase::Reversing {
-                    start: pose,
-                    distance_m,
-                    deadline: now
-                        + Duration::from_secs_f64(3.0 * distance_m / REVERSE_SPEED_MPS as f64),
-                });
-            }
+        self.at_table = false;
+        let distance_m = step.back_out_m;
+        if distance_m > 0.0 {
+            return Some(Phase::Reversing {
+                start: pose,
+                distance_m,
+                deadline: now
+                    + Duration::from_secs_f64(3.0 * distance_m / REVERSE_SPEED_MPS as f64),
+            });
         }
         self.request_path(step, pose, now, outputs)
     }
 
-    /// Asks the worker for the leg's path. A goal followed by an unload is docked: the path
-    /// ends at a pre-goal straight behind the goal (facing the table), where the base turns,
-    /// then drives straight in, so it never turns next to the table or between chairs.
+    /// Asks the worker for the leg's path. A docked goal (`approach_m` > 0: an unload's, or
+    /// the loading station's) gets a path to its pre-goal straight behind the goal (facing the
+    /// table), where the base turns, then drives straight in, so it never turns next to the
+    /// table or between chairs.
     fn request_path(
         &mut self,
         step: &TaskStep,
@@ -271,26 +247,22 @@ impl MissionCore {
         self.dock_goal = None;
         let mut to = (step.x_m, step.y_m);
         self.dock = None;
-        // A goal next to a table (an unload's, or the loading station's) is docked.
-        let table_next = self
-            .steps
-            .get(self.step_index + 1)
-            .is_some_and(|n| matches!(n.kind(), Ok(TaskStepKind::Unload | TaskStepKind::Load)));
-        if table_next {
+        if step.approach_m < 0.0 {
             // No straight way in: the standing spot itself is not free on the map (the learned
             // feasibility is no geometric check). Driving there and turning would push the
             // base into the furniture; the leg fails before it starts.
-            let Some((x, y, d)) = self.docking_spot(step) else {
-                return self.leg_failed(
-                    step,
-                    now,
-                    "no straight way in to the standing spot",
-                    outputs,
-                );
-            };
+            return self.leg_failed(
+                step,
+                now,
+                "no straight way in to the standing spot",
+                outputs,
+            );
+        }
+        if step.approach_m > 0.0 {
+            let d = step.approach_m;
             let (s, c) = step.yaw_rad.sin_cos();
-            to = (x - c * d, y - s * d);
-            self.dock = Some([x, y, step.yaw_rad, d]);
+            to = (step.x_m - c * d, step.y_m - s * d);
+            self.dock = Some([step.x_m, step.y_m, step.yaw_rad, d]);
         }
         outputs.job = Some(Job::Path {
             id,
@@ -301,108 +273,6 @@ impl MissionCore {
             seen: SeenPoints::NONE,
         });
         Some(Phase::PathRequested { id, since: now })
-    }
-
-    /// How far behind the pose (`x`, `y`, `yaw`) the base can stand and still drive straight
-    /// to it: the longest of [`DOCKING_DISTANCES_M`] whose straight line is free for the
-    /// footprint at `yaw` (with [`SOUND_LINE_MARGIN_M`], else [`DOCKING_LINE_MARGIN_M`]) and
-    /// where a turn in place is free (with [`TURN_MARGIN_M`], every 15 degrees); failing that,
-    /// the longest free line. The pre-goal of a docking (behind a table goal) and the end of a
-    /// back-out (behind the base at the table).
-    fn free_stretch(&self, x: f64, y: f64, yaw: f64) -> Option<f64> {
-        self.sound_stretch(x, y, yaw)
-            .or_else(|| self.stretch_with(x, y, yaw, &self.line_robot))
-    }
-
-    /// Where to dock for `step`, and from how far: the goal, or the nearest of
-    /// [`DOCK_SHIFTS_M`] along the table, whose line in is free with [`SOUND_LINE_MARGIN_M`]
-    /// and whose pre-goal is free to turn at; failing that, the nearest with a line free by
-    /// [`DOCKING_LINE_MARGIN_M`] (at each spot, a pre-goal free to turn at first). None: no
-    /// spot within the shifts is free on the map.
-    fn docking_spot(&self, step: &TaskStep) -> Option<(f64, f64, f64)> {
-        let (s, c) = step.yaw_rad.sin_cos();
-        let yaw = step.yaw_rad;
-        let spot = |shift: &f64| (step.x_m - s * shift, step.y_m + c * shift);
-        DOCK_SHIFTS_M
-            .iter()
-            .find_map(|shift| {
-                let (x, y) = spot(shift);
-                self.sound_stretch(x, y, yaw).map(|d| (x, y, d))
-            })
-            .or_else(|| {
-                DOCK_SHIFTS_M.iter().find_map(|shift| {
-                    let (x, y) = spot(shift);
-                    self.stretch_with(x, y, yaw, &self.line_robot)
-                        .map(|d| (x, y, d))
-                })
-            })
-    }
-
-    /// The longest stretch whose line is free with [`SOUND_LINE_MARGIN_M`] and whose end is
-    /// free to turn at.
-    fn sound_stretch(&self, x: f64, y: f64, yaw: f64) -> Option<f64> {
-        DOCKING_DISTANCES_M.iter().copied().find(|d| {
-            self.line_free(x, y, yaw, *d, &self.sound_line_robot) && self.turn_free(x, y, yaw, *d)
-        })
-    }
-
-    /// Whether the footprint (of `robot`) at `yaw` is free all along the line from `d` behind
-    /// (`x`, `y`) to it, every 5 cm.
-    fn line_free(&self, x: f64, y: f64, yaw: f64, d: f64, robot: &world::RobotConfig) -> bool {
-        (0..=((d / 0.05).ceil() as usize))
-            .all(|k| self.footprint_free(x, y, yaw, (k as f64 * 0.05).min(d), yaw, robot))
-    }
-
-    /// Whether a turn in place `d` behind (`x`, `y`) along `yaw` is free (with
-    /// [`TURN_MARGIN_M`], every 15 degrees).
-    fn turn_free(&self, x: f64, y: f64, yaw: f64, d: f64) -> bool {
-        (0..12).all(|k| {
-            let heading = yaw + f64::from(k) * std::f64::consts::PI / 12.0;
-            self.footprint_free(x, y, yaw, d, heading, &self.turn_robot)
-        })
-    }
-
-    /// Whether `robot`'s footprint at `heading`, `d` behind (`x`, `y`) along `yaw`, is free.
-    fn footprint_free(
-        &self,
-        x: f64,
-        y: f64,
-        yaw: f64,
-        d: f64,
-        heading: f64,
-        robot: &world::RobotConfig,
-    ) -> bool {
-        let (s, c) = yaw.sin_cos();
-        !world::base_collides(
-            &self.scene,
-            robot,
-            world::BasePose {
-                x_m: x - c * d,
-                y_m: y - s * d,
-                yaw_rad: heading,
-            },
-        )
-    }
-
-    /// The longest line free for `line_robot` whose end is free to turn at, else the longest
-    /// free line.
-    fn stretch_with(
-        &self,
-        x: f64,
-        y: f64,
-        yaw: f64,
-        line_robot: &world::RobotConfig,
-    ) -> Option<f64> {
-        let lines: heapless::Vec<f64, 5> = DOCKING_DISTANCES_M
-            .iter()
-            .copied()
-            .filter(|d| self.line_free(x, y, yaw, *d, line_robot))
-            .collect();
-        lines
-            .iter()
-            .copied()
-            .find(|d| self.turn_free(x, y, yaw, *d))
-            .or_else(|| lines.first().copied())
     }
 
     /// Where to drive in from `pose` (the pre-goal) for the docking `goal` ([x, y, yaw, d]):
@@ -424,7 +294,8 @@ impl MissionCore {
         let (s, c) = goal[2].sin_cos();
         let chosen = DOCK_SHIFTS_M.iter().copied().find_map(|shift| {
             let (gx, gy) = (goal[0] - s * shift, goal[1] + c * shift);
-            let map_clear = shift == 0.0 || self.segment_free((pose.x_m, pose.y_m), (gx, gy));
+            let map_clear =
+                shift == 0.0 || self.docking.segment_free((pose.x_m, pose.y_m), (gx, gy));
             (map_clear && scan_line_clear(pose, (gx, gy), scan, &self.config.robot))
                 .then_some((shift, gx, gy))
         })?;
@@ -441,24 +312,6 @@ impl MissionCore {
             );
         }
         Some((gx, gy))
-    }
-
-    /// Whether the footprint (with the docking line's margin) is free on the map all along the
-    /// straight line from `a` to `b`, facing along it, every 5 cm.
-    fn segment_free(&self, a: (f64, f64), b: (f64, f64)) -> bool {
-        let (dx, dy) = (b.0 - a.0, b.1 - a.1);
-        let d = dx.hypot(dy);
-        let yaw = dy.atan2(dx);
-        (0..=((d / 0.05).ceil() as usize)).all(|k| {
-            self.footprint_free(
-                b.0,
-                b.1,
-                yaw,
-                (k as f64 * 0.05).min(d),
-                yaw,
-                &self.line_robot,
-            )
-        })
     }
 
     /// When a leg must have ended: the factor times its planned (or straight-line) travel time,

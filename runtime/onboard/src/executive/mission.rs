@@ -73,13 +73,6 @@ pub struct CoreStats {
 }
 
 /// `robot` with its footprint grown by `margin_m` on every side.
-fn grown(robot: &world::RobotConfig, margin_m: f64) -> world::RobotConfig {
-    let mut r = robot.clone();
-    r.footprint.length_m += 2.0 * margin_m;
-    r.footprint.width_m += 2.0 * margin_m;
-    r
-}
-
 /// Step progress.
 #[derive(Debug, Clone)]
 pub(super) enum Phase {
@@ -177,7 +170,7 @@ pub struct MissionCore {
     /// Load requests sent (`load/request`), the last one's id.
     load_request_id: u64,
     pub(super) request_sent: Option<Duration>,
-    last_request: ReplanRequestMsg,
+    pub(super) last_request: ReplanRequestMsg,
     /// Standing still after a localisation jump until then.
     jump_hold_until: Option<Duration>,
     /// Objects not yet placed (or given up), bit i = object i.
@@ -204,15 +197,8 @@ pub struct MissionCore {
     pub(super) dock_goal: Option<[f64; 3]>,
     /// Since when the way in to the standing spot has been seen blocked at the pre-goal.
     pub(super) dock_blocked_since: Option<Duration>,
-    /// The scene (static map) for footprint checks at a true heading.
-    pub(super) scene: Arc<world::Scene>,
-    /// The robot with its footprint grown by the docking line's margin.
-    pub(super) line_robot: world::RobotConfig,
-    /// The robot with its footprint grown by the sound docking line's margin (clear of the
-    /// range sensor's noise).
-    pub(super) sound_line_robot: world::RobotConfig,
-    /// The robot with its footprint grown by the turning margin.
-    pub(super) turn_robot: world::RobotConfig,
+    /// The map's docking geometry: a goal the scan moves must have a free line in on the map.
+    pub(super) docking: crate::docking::Docking,
     /// Since when the collision monitor has held the base (motion asked, none let through).
     pub(super) monitor_hold_since: Option<Duration>,
     /// The hold was reported.
@@ -243,9 +229,7 @@ impl MissionCore {
         tray: TrayGeometry,
         objects: usize,
     ) -> Self {
-        let line_robot = grown(&config.robot, super::legs::DOCKING_LINE_MARGIN_M);
-        let sound_line_robot = grown(&config.robot, super::legs::SOUND_LINE_MARGIN_M);
-        let turn_robot = grown(&config.robot, super::legs::TURN_MARGIN_M);
+        let docking = crate::docking::Docking::new(scene.as_ref().clone(), &config.robot);
         let remaining = if objects >= 64 {
             u64::MAX
         } else {
@@ -288,10 +272,7 @@ impl MissionCore {
             future_fixes: 0,
             dock_goal: None,
             dock_blocked_since: None,
-            line_robot,
-            sound_line_robot,
-            turn_robot,
-            scene,
+            docking,
             monitor_hold_since: None,
             hold_reported: false,
             forced_turn: None,
@@ -689,6 +670,10 @@ impl MissionCore {
         req.remaining_mask = self.remaining;
         req.on_board_mask = self.on_board();
         req.pose = [est.x_m, est.y_m, est.yaw_rad];
+        if self.at_table {
+            // The plan's first leg backs out (the planner works out how far).
+            req.flags |= grop_ipc::REQUEST_AT_TABLE;
+        }
         if let Some(step) = failed {
             req.failed_object = step.object_index;
             req.failed_side = step.side;
@@ -1106,7 +1091,7 @@ fn zero_request() -> ReplanRequestMsg {
         on_board_mask: 0,
         pose: [0.0; 3],
         failed_side: 0,
-        reserved: 0,
+        flags: 0,
         failed_goal_m: [0.0; 2],
     }
 }

@@ -87,3 +87,64 @@ fn a_chair_the_scan_sees_at_the_edge_of_the_way_in_moves_the_goal_along_the_tabl
         b.events
     );
 }
+
+/// The core docks and backs out as the plan says (the planner works both out on the map): it
+/// drives to the pre-goal `approach_m` behind a docked goal, straight to a goal that is not
+/// docked, fails the leg before any motion where the plan says there is no way in, and backs
+/// straight out as far as `back_out_m` before it asks for the path.
+#[test]
+fn the_core_docks_and_backs_out_as_the_plan_says() {
+    let goal = [1.0, 5.2, std::f64::consts::FRAC_PI_2];
+    let unload = TaskStep::unload(0, grop_ipc::TableSide::Near, [goal[0], 6.0, 1.3], goal, 0.8);
+    let leg = |approach_m: f64, back_out_m: f64| {
+        let mut nav = TaskStep::navigate(goal[0], goal[1], goal[2], 20.0);
+        nav.approach_m = approach_m;
+        nav.back_out_m = back_out_m;
+        [nav, unload]
+    };
+    for (approach, pre_goal_y) in [(0.45, goal[1] - 0.45), (0.3, goal[1] - 0.3), (0.0, goal[1])] {
+        let mut b = Bench::in_scene(Scene::empty_paper_room(), 1);
+        let Some(Job::Path { to, .. }) = b.running_with_as_planned(&leg(approach, 0.0)) else {
+            panic!("expected a path job");
+        };
+        assert!(
+            (to.0 - goal[0]).abs() < 1e-9 && (to.1 - pre_goal_y).abs() < 1e-9,
+            "approach {approach}: {to:?}"
+        );
+        assert_eq!(b.core.dock.is_some(), approach > 0.0);
+    }
+    // No way in: the leg fails at once, nothing moved.
+    let mut b = Bench::in_scene(Scene::empty_paper_room(), 1);
+    let start = (b.odo.x_m, b.odo.y_m);
+    assert!(
+        b.running_with_as_planned(&leg(crate::docking::NO_WAY_IN, 0.0))
+            .is_none()
+    );
+    assert!(
+        b.events
+            .iter()
+            .any(|(k, d)| *k == EventKind::LegFinished && d.contains("no straight way in")),
+        "{:?}",
+        b.events
+    );
+    assert_eq!((b.odo.x_m, b.odo.y_m), start);
+    // Backing out 0.3 m first: reverse, then ask for the path from where it stopped.
+    let mut b = Bench::in_scene(Scene::empty_paper_room(), 1);
+    let start = (b.odo.x_m, b.odo.y_m);
+    assert!(
+        b.running_with_as_planned(&leg(0.45, 0.3)).is_none(),
+        "no path before backing out"
+    );
+    let mut reversed = false;
+    let from = loop {
+        b.step(|_| {});
+        reversed |= b.core.velocity().speed_mps < 0.0;
+        if let Some(Job::Path { from, .. }) = b.out.job {
+            break from;
+        }
+        assert!(b.now < Duration::from_secs(10), "never asked for the path");
+    };
+    assert!(reversed);
+    let backed = (from.0 - start.0).hypot(from.1 - start.1);
+    assert!((0.3..0.36).contains(&backed), "backed out {backed} m");
+}

@@ -143,9 +143,20 @@ impl Bench {
         panic!("no plan request");
     }
 
-    /// Starts a mission whose plan is `steps`, parks the arm, and returns once the first leg
-    /// asked for its path (the job's id).
+    /// Starts a mission whose plan is `steps` (with the docking the planner node writes into
+    /// every plan, on the bench's map), parks the arm, and returns once the first leg asked for
+    /// its path (the job's id).
     fn running_with(&mut self, steps: &[TaskStep]) -> Option<Job> {
+        let mut steps = steps.to_vec();
+        let at = self.core.localiser.estimate();
+        self.core
+            .docking
+            .annotate(&mut steps, [at.x_m, at.y_m, at.yaw_rad], false);
+        self.running_with_as_planned(&steps)
+    }
+
+    /// [`Bench::running_with`] with the steps as they are (docking fields included).
+    fn running_with_as_planned(&mut self, steps: &[TaskStep]) -> Option<Job> {
         let request = self.until_request();
         // The arm parks while the plan is worked out: the shell reports the move done.
         assert_eq!(
@@ -737,6 +748,12 @@ fn a_collision_monitor_hold_is_reported_and_one_that_lasts_fails_the_leg() {
     );
     assert!(b.out.request.is_some() || b.saw(EventKind::ReplanRequested));
     assert_eq!(b.core.stats().monitor_holds, 2);
+    // Held in front of something: the request says the base must back away first (the
+    // planner works out how far).
+    assert_eq!(
+        b.core.last_request.flags & grop_ipc::REQUEST_AT_TABLE,
+        grop_ipc::REQUEST_AT_TABLE
+    );
 }
 
 #[test]

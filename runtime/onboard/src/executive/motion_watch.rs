@@ -184,13 +184,11 @@ impl MissionCore {
                 } else {
                     "blocked by an obstacle the scan sees"
                 };
+                // Held in front of something: the next plan's first leg backs away from it
+                // first (as from a table; the request says so), so that its path, planned
+                // round what the scan sees, starts where the base can turn.
+                self.at_table = !docking;
                 self.phase = self.leg_failed(&step, now, what, outputs);
-                // Held in front of something: the next leg backs away from it first (as from a
-                // table), so that its path, planned round what the scan sees, starts where the
-                // base can turn.
-                if !docking && self.phase.is_none() {
-                    self.at_table = true;
-                }
             }
         }
     }

@@ -220,7 +220,8 @@ impl Channel {
                     "steps": {"type": "array", "items": {"type": "object", "properties": {
                         "kind": int, "kind_name": text, "side": int, "object": int,
                         "load_mask": int, "x_m": num, "y_m": num, "yaw_rad": num,
-                        "target_m": nums(3), "feasibility": num, "travel_cost_s": num
+                        "target_m": nums(3), "feasibility": num, "travel_cost_s": num,
+                        "approach_m": num, "back_out_m": num
                     }}}
                 }),
             ),
@@ -229,7 +230,8 @@ impl Channel {
                 json!({
                     "request_id": int, "stamp_ns": int, "reason": int, "reason_name": text,
                     "failed_object": int, "remaining_mask": int, "on_board_mask": int,
-                    "pose": nums(3), "failed_side": int, "failed_goal_m": nums(2)
+                    "pose": nums(3), "failed_side": int, "failed_goal_m": nums(2),
+                    "flags": {"type": "integer", "description": "bit 0: the base stands at a table"}
                 }),
             ),
             Channel::LoadRequest => (
@@ -544,6 +546,8 @@ struct StepJson {
     target_m: [f64; 3],
     feasibility: f64,
     travel_cost_s: f64,
+    approach_m: f64,
+    back_out_m: f64,
 }
 
 #[derive(Serialize)]
@@ -587,6 +591,8 @@ pub fn encode_task_plan(m: &TaskPlanMsg) -> Vec<u8> {
                 target_m: s.target_m,
                 feasibility: s.feasibility,
                 travel_cost_s: s.travel_cost_s,
+                approach_m: s.approach_m,
+                back_out_m: s.back_out_m,
             })
             .collect(),
     })
@@ -603,7 +609,7 @@ pub fn encode_plan_request(m: &ReplanRequestMsg) -> Vec<u8> {
         "request_id": m.request_id, "stamp_ns": m.stamp_ns, "reason": m.reason,
         "reason_name": name(m.reason()), "failed_object": m.failed_object,
         "remaining_mask": m.remaining_mask, "on_board_mask": m.on_board_mask, "pose": m.pose,
-        "failed_side": m.failed_side, "failed_goal_m": m.failed_goal_m
+        "failed_side": m.failed_side, "failed_goal_m": m.failed_goal_m, "flags": m.flags
     }))
 }
 

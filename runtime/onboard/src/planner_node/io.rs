@@ -250,6 +250,14 @@ impl PlannerNode {
             }
             .into());
         }
+        // The planner plans how the base docks and backs out; the executive follows.
+        let mut steps = steps.to_vec();
+        self.docking.annotate(
+            &mut steps,
+            request.pose,
+            request.flags & grop_ipc::REQUEST_AT_TABLE != 0,
+        );
+        let steps = steps.as_slice();
         self.plan_counter += 1;
         let plan_id = self.plan_counter;
         let reward = self.planner.config.success_bonus_r;

@@ -214,6 +214,8 @@ pub struct PlannerNode {
     scene: Scene,
     robot: RobotConfig,
     grid: OccupancyGrid,
+    /// Where the base docks, from how far, and how far it backs out (written into every plan).
+    docking: crate::docking::Docking,
     psi: Box<dyn FeasibilityEvaluator>,
     planner: Planner,
     /// Objects per trip (the robot file's `carry_capacity`).
@@ -317,6 +319,7 @@ impl PlannerNode {
             capacity: robot.carry_capacity as usize,
             retry: settings.retry,
             seed,
+            docking: crate::docking::Docking::new(scene.clone(), &robot),
             scene,
             robot,
             grid,
