@@ -208,6 +208,10 @@ fn plan(b: &mut Bytes<'_>, request_id: u64, task_mask: u64) -> TaskPlanMsg {
         };
         s.target_m = [num(b), num(b), num(b)];
         s.feasibility = num(b);
+        // The plan's tray and docking, as the planner node writes them (or not).
+        s.tray_slot = u32::from(b.u8());
+        s.approach_m = num(b);
+        s.back_out_m = num(b);
         *step = s;
     }
     TaskPlanMsg {
@@ -617,6 +621,10 @@ pub(crate) fn seeds() -> Vec<Vec<u8>> {
                 room(out, *v);
             }
             room(out, *feasibility);
+            // The tray: a load fills slot 0, an unload takes from it. Not docked.
+            out.push(u8::from(*kind == 2));
+            room(out, 0.0);
+            room(out, 0.0);
         }
         out.extend(1u16.to_be_bytes()); // plan id
         for v in [1.0, 1.0, 10.0, 40.0] {

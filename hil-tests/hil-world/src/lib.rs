@@ -677,7 +677,7 @@ impl World {
             let station = cfg.scene.loading_station;
             if still_s >= 1.0 && (pose.x_m - station.x_m).hypot(pose.y_m - station.y_m) < 0.5 {
                 if let Some(req) = pending_load.take() {
-                    let detail = match self.objects.load(req.object_mask) {
+                    let detail = match self.objects.load(req.object_mask, &req.slots) {
                         Some(ObjectEvent::Loaded { mask }) if mask == req.object_mask => format!(
                             "load request {}: objects {mask:#x} put on the tray",
                             req.request_id

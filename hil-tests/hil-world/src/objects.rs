@@ -166,14 +166,22 @@ impl ObjectTracker {
             .any(|o| o.state == ObjectState::OnTray { slot })
     }
 
-    /// Loads the objects of `mask` still at the station into free slots, in index order.
-    pub fn load(&mut self, mask: u64) -> Option<ObjectEvent> {
+    /// Loads the objects of `mask` still at the station: each into the slot the request names
+    /// for it (`slots`: per slot, the object plus one; the robot's display shows it), if that
+    /// slot is free; the others into free slots, in index order.
+    pub fn load(&mut self, mask: u64, slots: &[u8]) -> Option<ObjectEvent> {
         let mut loaded = 0u64;
         for i in 0..self.objects.len().min(64) {
             if mask & (1u64 << i) == 0 || self.objects[i].state != ObjectState::AtStation {
                 continue;
             }
-            let Some(slot) = (0..self.slots_base.len()).find(|s| !self.slot_taken(*s)) else {
+            let named = slots
+                .iter()
+                .position(|o| usize::from(*o) == i + 1)
+                .filter(|s| *s < self.slots_base.len() && !self.slot_taken(*s));
+            let Some(slot) =
+                named.or_else(|| (0..self.slots_base.len()).find(|s| !self.slot_taken(*s)))
+            else {
                 break;
             };
             self.objects[i].state = ObjectState::OnTray { slot };
@@ -271,8 +279,11 @@ mod tests {
     fn load_grasp_release_and_judge() {
         let slots = [[-0.2, 0.0, 1.1]];
         let mut t = ObjectTracker::new(&[[1.0, 6.0, 1.3]], &slots, JudgeConfig::default());
-        assert!(matches!(t.load(1), Some(ObjectEvent::Loaded { mask: 1 })));
-        assert_eq!(t.load(1), None, "nothing left at the station");
+        assert!(matches!(
+            t.load(1, &[]),
+            Some(ObjectEvent::Loaded { mask: 1 })
+        ));
+        assert_eq!(t.load(1, &[]), None, "nothing left at the station");
         let base = Isometry3::translation(1.0, 5.0, 0.0);
         let at_slot = Point3::new(0.8, 5.0, 1.1);
         let table = |_x: f64, y: f64| (5.8..6.2).contains(&y);
@@ -296,6 +307,20 @@ mod tests {
     }
 
     #[test]
+    fn the_station_puts_each_object_in_the_slot_the_request_names() {
+        let slots = [[-0.2, 0.0, 1.1], [-0.2, 0.2, 1.1], [-0.2, 0.4, 1.1]];
+        let targets = [[1.0, 6.0, 1.3], [2.0, 6.0, 1.3], [3.0, 6.0, 1.3]];
+        let mut t = ObjectTracker::new(&targets, &slots, JudgeConfig::default());
+        // Object 0 into slot 2, object 1 into slot 0; object 2 named nowhere: the free slot.
+        t.load(0b111, &[2, 0, 1]);
+        let slot_of = |i: usize| match t.objects()[i].state {
+            ObjectState::OnTray { slot } => slot,
+            ref other => panic!("object {i}: {other:?}"),
+        };
+        assert_eq!([slot_of(0), slot_of(1), slot_of(2)], [2, 0, 1]);
+    }
+
+    #[test]
     fn a_collision_or_a_miss_is_not_a_placement() {
         let slots = [[-0.2, 0.0, 1.1], [-0.2, 0.2, 1.1]];
         let mut t = ObjectTracker::new(
@@ -303,7 +328,7 @@ mod tests {
             &slots,
             JudgeConfig::default(),
         );
-        t.load(3);
+        t.load(3, &[]);
         let base = Isometry3::translation(1.0, 5.0, 0.0);
         let table = |_x: f64, y: f64| (5.8..6.2).contains(&y);
         let slot0 = Point3::new(0.8, 5.0, 1.1);

@@ -304,6 +304,12 @@ impl Harness {
                     req.pose,
                     req.flags & grop_ipc::REQUEST_AT_TABLE != 0,
                 );
+            grop_onboard::tray_plan::assign_slots(
+                &mut steps,
+                &grop_onboard::tray_plan::tray_of(&req.tray),
+                3,
+            )
+            .unwrap();
             let id = req.request_id;
             self.plans
                 .publish_with(|p| {

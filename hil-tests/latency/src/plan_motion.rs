@@ -127,17 +127,19 @@ fn one(namespace: &str) -> anyhow::Result<Duration> {
         while let Some(req) = requests.try_recv()? {
             if plan_at.is_none() && exec.state() == MissionState::Running {
                 let id = req.request_id;
-                let mut steps = [
+                // One leg to a standing spot at the table, docked as the planner node plans it
+                // (the path goes to the pre-goal). The unload after it is not part of the
+                // measurement (nothing is on the tray to unload: the executive would refuse it).
+                let mut leg = [
                     TaskStep::navigate(goal[0], goal[1], goal[2], 3.0),
                     TaskStep::unload(0, TableSide::Near, target, goal, 0.9),
                 ];
-                // As the planner node does: how the base docks (the path goes to the
-                // pre-goal).
                 docking.annotate(
-                    &mut steps,
+                    &mut leg,
                     req.pose,
                     req.flags & grop_ipc::REQUEST_AT_TABLE != 0,
                 );
+                let steps = [leg[0]];
                 let published = clock.now();
                 plans.publish_with(|p| {
                     p.plan_id = 1;

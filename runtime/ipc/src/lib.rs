@@ -68,9 +68,9 @@ pub use messages::{
 };
 pub use mission::{
     BasePoseMsg, HEATMAP_COLS, HEATMAP_ROWS, HeartbeatMsg, HeatmapsMsg, LoadRequestMsg,
-    LocationHeatmap, MAX_HEATMAPS, MAX_TASK_OBJECTS, MAX_TASK_STEPS, OperatorEnableMsg,
-    PoseFixKind, ProcessRole, REQUEST_AT_TABLE, ReplanReason, ReplanRequestMsg, TaskPlanMsg,
-    TaskStep, TaskStepKind, TruthMsg,
+    LocationHeatmap, MAX_HEATMAPS, MAX_TASK_OBJECTS, MAX_TASK_STEPS, MAX_TRAY_SLOTS,
+    OperatorEnableMsg, PoseFixKind, ProcessRole, REQUEST_AT_TABLE, ReplanReason, ReplanRequestMsg,
+    TaskPlanMsg, TaskStep, TaskStepKind, TruthMsg,
 };
 pub use port::{
     FrameError, IpcNode, NodeError, PortError, PublishError, ReceiveError, Received,

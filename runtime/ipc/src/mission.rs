@@ -58,8 +58,9 @@ pub struct TaskStep {
     pub side: i32,
     /// Object of an unload step.
     pub object_index: u32,
-    /// Zero.
-    pub reserved: u32,
+    /// Unload: the tray slot its object rides in (the planner accounts for the tray: a load
+    /// step puts each of its objects into the slot its unload step names); 0 otherwise.
+    pub tray_slot: u32,
     /// Objects taken on board by a load step (bit i = object i).
     pub load_mask: u64,
     /// Navigation goal (or where the step happens), world x, metres.
@@ -128,7 +129,7 @@ impl TaskStep {
             kind: kind as u32,
             side: 0,
             object_index: 0,
-            reserved: 0,
+            tray_slot: 0,
             load_mask: 0,
             x_m: 0.0,
             y_m: 0.0,
@@ -313,7 +314,13 @@ pub struct ReplanRequestMsg {
     pub flags: u32,
     /// Navigation goal of the failed unload, world x, y (m).
     pub failed_goal_m: [f64; 2],
+    /// The tray as the executive believes it: per slot, the object in it plus one (0: empty).
+    /// The plan's loads go into the slots free here.
+    pub tray: [u8; MAX_TRAY_SLOTS],
 }
+
+/// Slots of the largest tray the messages describe.
+pub const MAX_TRAY_SLOTS: usize = 8;
 
 /// [`ReplanRequestMsg::flags`]: the base stands at a table (it just loaded or unloaded, or the
 /// collision monitor held it in front of something): the plan's first leg backs out first.
@@ -340,7 +347,7 @@ impl ReplanRequestMsg {
 /// object order into the free tray slots (the order the executive assumes).
 #[derive(Clone, Copy, Debug, PartialEq, ZeroCopySend)]
 #[repr(C)]
-#[type_name("grop_ipc::LoadRequestMsg/v1")]
+#[type_name("grop_ipc::LoadRequestMsg/v2")]
 pub struct LoadRequestMsg {
     /// Load request counter of the executive, increasing from 1.
     pub request_id: u64,
@@ -356,6 +363,9 @@ pub struct LoadRequestMsg {
     pub step_index: u32,
     /// Zero.
     pub reserved: u32,
+    /// Where each object goes, as the plan says: per slot, the object to put in it plus one
+    /// (0: none of this request's).
+    pub slots: [u8; MAX_TRAY_SLOTS],
 }
 
 impl LoadRequestMsg {
@@ -376,6 +386,7 @@ impl LoadRequestMsg {
             station_m,
             step_index,
             reserved: 0,
+            slots: [0; MAX_TRAY_SLOTS],
         }
     }
 
@@ -673,8 +684,8 @@ mod tests {
     fn wire_sizes_are_fixed() {
         assert_eq!(size_of::<TaskStep>(), 104);
         assert_eq!(size_of::<TaskPlanMsg>(), 80 + 104 * MAX_TASK_STEPS);
-        assert_eq!(size_of::<ReplanRequestMsg>(), 88);
-        assert_eq!(size_of::<LoadRequestMsg>(), 56);
+        assert_eq!(size_of::<ReplanRequestMsg>(), 96);
+        assert_eq!(size_of::<LoadRequestMsg>(), 64);
         assert_eq!(size_of::<LocationHeatmap>(), 40 + 4 * 2048);
         assert_eq!(size_of::<BasePoseMsg>(), 64);
         assert_eq!(size_of::<HeartbeatMsg>(), 32);

@@ -12,3 +12,4 @@ pub mod localisation;
 pub mod mission_log;
 pub mod planner_node;
 pub mod process;
+pub mod tray_plan;

@@ -97,10 +97,22 @@ fn request(id: u64, reason: ReplanReason, pose: [f64; 3], remaining: u64) -> Rep
         pose,
         failed_side: 0,
         flags: 0,
+        tray: [0; grop_ipc::MAX_TRAY_SLOTS],
         failed_goal_m: [0.0; 2],
     };
     r.set_reason(reason);
     r
+}
+
+/// A request's tray holding the objects of `mask` in the first slots, in object order (as
+/// the executive loads them when the plan says so).
+fn tray_holding(mask: u64) -> [u8; grop_ipc::MAX_TRAY_SLOTS] {
+    let mut tray = [0; grop_ipc::MAX_TRAY_SLOTS];
+    let objects = (0..64u8).filter(|o| mask & (1u64 << o) != 0);
+    for (slot, object) in tray.iter_mut().zip(objects) {
+        *slot = object + 1;
+    }
+    tray
 }
 
 /// Steps the node (10 ms of clock time per step) until it answers.
@@ -318,6 +330,9 @@ fn failed_unloads_are_answered_by_retry_policy() {
         failure.failed_object = failed.object_index;
         failure.failed_side = failed.side;
         failure.on_board_mask = 0b111;
+        failure.tray = tray_holding(failure.on_board_mask);
+        // At the table, as the executive says after an unload.
+        failure.flags = grop_ipc::REQUEST_AT_TABLE;
         p.requests.publish(&failure).unwrap();
         let answer = step_until_answer(&mut node, &mut now);
         let plan = newest(&p.plans);
@@ -405,6 +420,9 @@ fn failed_unload_is_answered_with_the_grop_plus_retry() {
         failure.failed_side = failed.side;
         failure.failed_goal_m = [failed.x_m, failed.y_m];
         failure.on_board_mask = 0b111;
+        failure.tray = tray_holding(failure.on_board_mask);
+        // At the table, as the executive says after an unload.
+        failure.flags = grop_ipc::REQUEST_AT_TABLE;
         tried.push((failed.x_m, failed.y_m));
         p.requests.publish(&failure).unwrap();
         let answer = step_until_answer(&mut node, &mut now);
@@ -863,6 +881,7 @@ fn six_objects_with_a_tray_of_three_are_planned_as_two_trips() {
         failure.failed_side = failed.side;
         failure.failed_goal_m = [failed.x_m, failed.y_m];
         failure.on_board_mask = loads[0];
+        failure.tray = tray_holding(failure.on_board_mask);
         p.requests.publish(&failure).unwrap();
         let answer = step_until_answer(&mut node, &mut now);
         let plan = newest(&p.plans);

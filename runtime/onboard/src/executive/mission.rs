@@ -674,6 +674,8 @@ impl MissionCore {
             // The plan's first leg backs out (the planner works out how far).
             req.flags |= grop_ipc::REQUEST_AT_TABLE;
         }
+        // The plan's loads go into the slots free now (the planner assigns them).
+        req.tray = crate::tray_plan::tray_to_wire(&self.slots);
         if let Some(step) = failed {
             req.failed_object = step.object_index;
             req.failed_side = step.side;
@@ -858,14 +860,20 @@ impl MissionCore {
     /// the robot's display shows the people there. The station loads exactly this mask.
     fn request_load(&mut self, step: &TaskStep, now: Duration, outputs: &mut CycleOutputs) {
         self.load_request_id += 1;
-        outputs.load_request = Some(LoadRequestMsg::new(
+        let mut request = LoadRequestMsg::new(
             self.load_request_id,
             ns(now),
             self.plan_id,
             u32::try_from(self.step_index).unwrap_or(u32::MAX),
             step.load_mask,
             [step.x_m, step.y_m],
-        ));
+        );
+        // Where each object goes, as the plan says (the robot's display shows it).
+        let pairs = crate::tray_plan::load_pairs(step.load_mask, step.tray_slot, &self.slots);
+        for (object, slot) in pairs.iter().flatten() {
+            request.slots[*slot] = u8::try_from(object + 1).unwrap_or(0);
+        }
+        outputs.load_request = Some(request);
         let id = self.load_request_id;
         self.event(
             EventKind::LoadRequested,
@@ -876,16 +884,10 @@ impl MissionCore {
     }
 
     fn load(&mut self, step: &TaskStep, now: Duration, outputs: &mut CycleOutputs) {
-        let mut slot = 0;
-        for object in 0..64u32 {
-            if step.load_mask & (1u64 << object) != 0 {
-                while slot < self.slots.len() && self.slots[slot].is_some() {
-                    slot += 1;
-                }
-                if slot < self.slots.len().min(self.tray.pick.len()) {
-                    self.slots[slot] = Some(object);
-                }
-            }
+        // Into the slots the plan gives them (checked when the plan was taken in).
+        let pairs = crate::tray_plan::load_pairs(step.load_mask, step.tray_slot, &self.slots);
+        for (object, slot) in pairs.iter().flatten() {
+            self.slots[*slot] = Some(*object);
         }
         self.event(
             EventKind::Loaded,
@@ -906,10 +908,13 @@ impl MissionCore {
         outputs: &mut CycleOutputs,
     ) -> Option<Phase> {
         let object = step.object_index;
-        let Some(slot) = self.slots.iter().position(|s| *s == Some(object)) else {
+        // From the slot the plan names, if the object is there as far as the executive knows
+        // (a tray mismatch found earlier forgets it).
+        let slot = step.tray_slot as usize;
+        if self.slots.get(slot) != Some(&Some(object)) {
             self.finish_failed_unload(step, now, UnloadFailure::NothingInSlot, outputs);
             return None;
-        };
+        }
         let id = self.next_job_id;
         self.next_job_id += 1;
         outputs.job = Some(Job::Unload {
@@ -1092,6 +1097,7 @@ fn zero_request() -> ReplanRequestMsg {
         pose: [0.0; 3],
         failed_side: 0,
         flags: 0,
+        tray: [0; grop_ipc::MAX_TRAY_SLOTS],
         failed_goal_m: [0.0; 2],
     }
 }

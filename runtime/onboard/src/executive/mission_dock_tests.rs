@@ -9,6 +9,8 @@ use super::*;
 fn dock_with_scan(scan: &[[f32; 2]]) -> (Bench, Option<[f64; 3]>) {
     let goal = [1.0, 5.2, std::f64::consts::FRAC_PI_2];
     let mut b = Bench::in_scene(Scene::empty_paper_room(), 1);
+    // The object rides on the tray already (loaded on an earlier trip).
+    b.core.slots[0] = Some(0);
     let steps = [
         TaskStep::navigate(goal[0], goal[1], goal[2], 20.0),
         TaskStep::unload(0, grop_ipc::TableSide::Near, [goal[0], 6.0, 1.3], goal, 0.8),
@@ -104,6 +106,7 @@ fn the_core_docks_and_backs_out_as_the_plan_says() {
     };
     for (approach, pre_goal_y) in [(0.45, goal[1] - 0.45), (0.3, goal[1] - 0.3), (0.0, goal[1])] {
         let mut b = Bench::in_scene(Scene::empty_paper_room(), 1);
+        b.core.slots[0] = Some(0);
         let Some(Job::Path { to, .. }) = b.running_with_as_planned(&leg(approach, 0.0)) else {
             panic!("expected a path job");
         };
@@ -115,6 +118,7 @@ fn the_core_docks_and_backs_out_as_the_plan_says() {
     }
     // No way in: the leg fails at once, nothing moved.
     let mut b = Bench::in_scene(Scene::empty_paper_room(), 1);
+    b.core.slots[0] = Some(0);
     let start = (b.odo.x_m, b.odo.y_m);
     assert!(
         b.running_with_as_planned(&leg(crate::docking::NO_WAY_IN, 0.0))
@@ -130,6 +134,7 @@ fn the_core_docks_and_backs_out_as_the_plan_says() {
     assert_eq!((b.odo.x_m, b.odo.y_m), start);
     // Backing out 0.3 m first: reverse, then ask for the path from where it stopped.
     let mut b = Bench::in_scene(Scene::empty_paper_room(), 1);
+    b.core.slots[0] = Some(0);
     let start = (b.odo.x_m, b.odo.y_m);
     assert!(
         b.running_with_as_planned(&leg(0.45, 0.3)).is_none(),

@@ -152,6 +152,10 @@ impl Bench {
         self.core
             .docking
             .annotate(&mut steps, [at.x_m, at.y_m, at.yaw_rad], false);
+        let usable = self.core.slots.len().min(self.core.tray.pick.len());
+        // The tray too, as the planner node assigns it (a plan the tray cannot take is left
+        // as it is, for the core to refuse).
+        let _ = crate::tray_plan::assign_slots(&mut steps, &self.core.slots, usable);
         self.running_with_as_planned(&steps)
     }
 
@@ -835,6 +839,55 @@ fn each_load_step_asks_the_station_once_for_its_own_mask() {
     assert_eq!(&b.core.slots[..3], &[Some(0), Some(2), None]);
 }
 
+/// The tray is the plan's: a load puts its objects into the slots the plan gives them (not
+/// the first free ones), and a plan whose slots do not add up with what is on the tray is
+/// refused, naming the step.
+#[test]
+fn the_core_loads_into_the_plan_s_slots_and_refuses_a_tray_that_does_not_add_up() {
+    let mut b = Bench::with_objects(3);
+    let mut load = TaskStep::load(0b011, 1.0, 1.0);
+    load.tray_slot = 0b0110;
+    assert!(b.running_with_as_planned(&[load]).is_none());
+    for _ in 0..400 {
+        b.step(|_| {});
+        if b.core.state() == MissionState::Finished {
+            break;
+        }
+    }
+    assert_eq!(b.core.state(), MissionState::Finished);
+    assert_eq!(&b.core.slots[..4], &[None, Some(0), Some(1), None]);
+
+    // An unload from a slot its object is not in: refused before anything moves.
+    let mut b = Bench::with_objects(3);
+    let request = b.until_request();
+    let goal = [1.0, 5.2, std::f64::consts::FRAC_PI_2];
+    let mut unload = TaskStep::unload(1, grop_ipc::TableSide::Near, [1.0, 6.0, 0.8], goal, 0.8);
+    unload.tray_slot = 0;
+    let mut load = TaskStep::load(0b011, 1.0, 1.0);
+    load.tray_slot = 0b0011;
+    let p = plan(
+        request,
+        &[
+            load,
+            TaskStep::navigate(goal[0], goal[1], goal[2], 10.0),
+            unload,
+        ],
+    );
+    b.step(|i| i.plans = std::slice::from_ref(&p));
+    assert_eq!(b.core.stats().plans, 0);
+    assert!(
+        b.events.iter().any(|(k, d)| *k == EventKind::StaleInput
+            && d.contains("step 2: object 1 is not in tray slot 0")),
+        "{:?}",
+        b.events
+    );
+    // The same plan with the slot the load gave object 1: taken.
+    let mut p = p;
+    p.steps[2].tray_slot = 1;
+    b.step(|i| i.plans = std::slice::from_ref(&p));
+    assert_eq!(b.core.stats().plans, 1, "{:?}", b.events);
+}
+
 #[test]
 fn an_empty_plan_finishes_the_mission_at_once() {
     // The planner could plan none of the objects (e.g. views unknown past the camera frame,
@@ -915,6 +968,8 @@ fn a_gripper_that_closes_on_nothing_is_reported_and_nothing_is_placed() {
 /// The pre-goal the first leg of an unload from `goal` drives to, in `scene`.
 fn docking_pre_goal(scene: Scene, goal: [f64; 3]) -> (f64, f64) {
     let mut b = Bench::in_scene(scene, 1);
+    // The object rides on the tray already (loaded on an earlier trip).
+    b.core.slots[0] = Some(0);
     let steps = [
         TaskStep::navigate(goal[0], goal[1], goal[2], 20.0),
         TaskStep::unload(0, grop_ipc::TableSide::Far, [goal[0], 6.0, 1.3], goal, 0.8),

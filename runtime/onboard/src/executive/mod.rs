@@ -225,8 +225,8 @@ pub enum ExecutiveError {
     },
 }
 
-/// Most tray slots the executive tracks.
-pub const MAX_TRAY_SLOTS: usize = 8;
+/// Most tray slots the executive tracks (the messages' tray).
+pub const MAX_TRAY_SLOTS: usize = grop_ipc::MAX_TRAY_SLOTS;
 
 /// How the mission ended (or is going).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -107,30 +107,15 @@ impl MissionCore {
         Ok(())
     }
 
-    /// Whether the plan's loads fit the tray: from what is on board now, every load step adds
-    /// its objects not yet on board, every unload frees its object; never more than the usable
-    /// slots at once. The error is (step, objects on board, slots).
-    pub(super) fn check_tray(&self, steps: &[TaskStep]) -> Result<(), (usize, usize, usize)> {
-        let slots = self.slots.len().min(self.tray.pick.len());
-        let mut on_board = self.on_board();
-        for (i, step) in steps.iter().enumerate() {
-            match step.kind() {
-                Ok(TaskStepKind::Load) => {
-                    on_board |= step.load_mask;
-                    let count = on_board.count_ones() as usize;
-                    if count > slots {
-                        return Err((i, count, slots));
-                    }
-                }
-                Ok(TaskStepKind::Unload) => {
-                    if let Ok(o) = step.object() {
-                        on_board &= !(1u64 << o);
-                    }
-                }
-                _ => {}
-            }
-        }
-        Ok(())
+    /// Whether the plan's tray adds up from what is on board now: every load fills free usable
+    /// slots with its objects, every unload's object is in the slot the step names
+    /// ([`crate::tray_plan::check_slots`]: the planner accounts, the executive checks).
+    pub(super) fn check_tray(
+        &self,
+        steps: &[TaskStep],
+    ) -> Result<(), crate::tray_plan::TrayPlanError> {
+        let usable = self.slots.len().min(self.tray.pick.len());
+        crate::tray_plan::check_slots(steps, &self.slots, usable)
     }
 
     /// A plan refused: the planner keeps answering what the executive cannot take, so after
@@ -168,14 +153,11 @@ impl MissionCore {
             self.plan_refused(now, outputs);
             return;
         }
-        if let Err((i, count, slots)) = self.check_tray(steps) {
+        if let Err(defect) = self.check_tray(steps) {
             self.event(
                 EventKind::StaleInput,
                 now,
-                format_args!(
-                    "plan {} rejected: step {i} loads {count} objects onto a tray of {slots} slots",
-                    plan.plan_id
-                ),
+                format_args!("plan {} rejected: the tray: {defect}", plan.plan_id),
                 outputs,
             );
             self.plan_refused(now, outputs);

@@ -221,7 +221,9 @@ impl Channel {
                         "kind": int, "kind_name": text, "side": int, "object": int,
                         "load_mask": int, "x_m": num, "y_m": num, "yaw_rad": num,
                         "target_m": nums(3), "feasibility": num, "travel_cost_s": num,
-                        "approach_m": num, "back_out_m": num
+                        "approach_m": num, "back_out_m": num,
+                        "tray_slot": {"type": "integer",
+                                      "description": "unload: its slot; load: the slots it fills (bit mask)"}
                     }}}
                 }),
             ),
@@ -231,14 +233,18 @@ impl Channel {
                     "request_id": int, "stamp_ns": int, "reason": int, "reason_name": text,
                     "failed_object": int, "remaining_mask": int, "on_board_mask": int,
                     "pose": nums(3), "failed_side": int, "failed_goal_m": nums(2),
-                    "flags": {"type": "integer", "description": "bit 0: the base stands at a table"}
+                    "flags": {"type": "integer", "description": "bit 0: the base stands at a table"},
+                    "tray": {"type": "array", "items": {"type": "integer"},
+                             "description": "per slot, the object in it plus one (0: empty)"}
                 }),
             ),
             Channel::LoadRequest => (
                 "The executive asks the loading station for objects on the tray",
                 json!({
                     "request_id": int, "stamp_ns": int, "plan_id": int, "step_index": int,
-                    "object_mask": int, "station_m": nums(2)
+                    "object_mask": int, "station_m": nums(2),
+                    "slots": {"type": "array", "items": {"type": "integer"},
+                              "description": "per slot, the object to put in it plus one"}
                 }),
             ),
             Channel::OperatorEnable => (
@@ -548,6 +554,7 @@ struct StepJson {
     travel_cost_s: f64,
     approach_m: f64,
     back_out_m: f64,
+    tray_slot: u32,
 }
 
 #[derive(Serialize)]
@@ -593,6 +600,7 @@ pub fn encode_task_plan(m: &TaskPlanMsg) -> Vec<u8> {
                 travel_cost_s: s.travel_cost_s,
                 approach_m: s.approach_m,
                 back_out_m: s.back_out_m,
+                tray_slot: s.tray_slot,
             })
             .collect(),
     })
@@ -609,7 +617,8 @@ pub fn encode_plan_request(m: &ReplanRequestMsg) -> Vec<u8> {
         "request_id": m.request_id, "stamp_ns": m.stamp_ns, "reason": m.reason,
         "reason_name": name(m.reason()), "failed_object": m.failed_object,
         "remaining_mask": m.remaining_mask, "on_board_mask": m.on_board_mask, "pose": m.pose,
-        "failed_side": m.failed_side, "failed_goal_m": m.failed_goal_m, "flags": m.flags
+        "failed_side": m.failed_side, "failed_goal_m": m.failed_goal_m, "flags": m.flags,
+        "tray": m.tray
     }))
 }
 
@@ -617,7 +626,8 @@ pub fn encode_plan_request(m: &ReplanRequestMsg) -> Vec<u8> {
 pub fn encode_load_request(m: &LoadRequestMsg) -> Vec<u8> {
     to_vec(&json!({
         "request_id": m.request_id, "stamp_ns": m.stamp_ns, "plan_id": m.plan_id,
-        "step_index": m.step_index, "object_mask": m.object_mask, "station_m": m.station_m
+        "step_index": m.step_index, "object_mask": m.object_mask, "station_m": m.station_m,
+        "slots": m.slots
     }))
 }
 

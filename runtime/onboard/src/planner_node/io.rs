@@ -257,6 +257,12 @@ impl PlannerNode {
             request.pose,
             request.flags & grop_ipc::REQUEST_AT_TABLE != 0,
         );
+        // And the tray: which slot each object rides in, from the tray the request describes.
+        crate::tray_plan::assign_slots(
+            &mut steps,
+            &crate::tray_plan::tray_of(&request.tray),
+            self.capacity,
+        )?;
         let steps = steps.as_slice();
         self.plan_counter += 1;
         let plan_id = self.plan_counter;

@@ -168,6 +168,9 @@ pub enum RequestError {
     /// More objects than the planner takes.
     #[error("{0} objects to plan; at most {MAX_PROBLEM_OBJECTS}")]
     TooManyObjects(usize),
+    /// The plan's tray does not add up from the tray the request describes.
+    #[error("the tray: {0}")]
+    Tray(#[from] crate::tray_plan::TrayPlanError),
     /// The plan or heatmaps do not fit their message.
     #[error("publishing: {0}")]
     Publish(#[from] PublishError),
