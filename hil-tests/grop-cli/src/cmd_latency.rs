@@ -1,6 +1,7 @@
 //! `grop latency`: the latency suite (hil-tests/latency) in one run: camera frames across two
 //! processes (iceoryx2 vs sockets), loop jitter without and with real-time settings, CAN
-//! command to feedback with the driver in the loop, allocations per steady-state cycle; a
+//! command to feedback with the driver in the loop, allocations per steady-state cycle, camera
+//! frame to plan, plan to motion, the range sensor's path to the base; a
 //! markdown report to `out/latency.md`, or `docs/latency.md` with `--write-docs`.
 
 use std::path::PathBuf;
@@ -86,10 +87,25 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         &format!("{namespace}-motion"),
     )
     .context("measuring plan to motion")?;
+    eprintln!("latency: the range sensor's path (UDP revolution, monitor check, stop to CAN)");
+    let n = if args.quick {
+        5
+    } else {
+        20 * args.rounds.max(1)
+    };
+    let lidar = latency::lidar::measure(&latency::lidar::LidarConfig {
+        revolutions: n,
+        stops: n,
+    })
+    .context("measuring the range sensor's path")?;
     let md = latency::report::markdown(
         &results,
         &reproduce(&args),
-        Some(latency::pipeline::markdown(&pipeline, &motion)),
+        Some(format!(
+            "{}\n{}",
+            latency::pipeline::markdown(&pipeline, &motion),
+            latency::lidar::markdown(&lidar)
+        )),
     );
     let out = if args.write_docs {
         PathBuf::from("docs/latency.md")

@@ -31,6 +31,7 @@ pub mod alloc_count;
 pub mod camera;
 pub mod can_loop;
 pub mod jitter;
+pub mod lidar;
 pub mod machine;
 pub mod names;
 pub mod peer;
