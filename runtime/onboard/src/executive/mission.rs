@@ -30,8 +30,9 @@ use super::unload::{
 };
 use super::worker::{Answer, Job, MAX_PATH_POINTS};
 use super::{AbortReason, ExecutiveConfig, MAX_TRAY_SLOTS, MissionState};
-use crate::localisation::{FixOutcome, Localiser, PlanarPose};
+use crate::localisation::{FixOutcome, Localiser};
 pub(super) use grop_clock::duration_ns as ns;
+use planar::Pose2;
 
 /// The arm must reach its carry pose within this.
 const PARKING_TIMEOUT: Duration = Duration::from_secs(20);
@@ -97,7 +98,7 @@ pub(super) enum Phase {
     AwaitTableFix { since: Duration },
     /// Backing straight out from the table before the next leg.
     Reversing {
-        start: PlanarPose,
+        start: Pose2,
         distance_m: f64,
         deadline: Duration,
     },
@@ -315,7 +316,7 @@ impl MissionCore {
     }
 
     /// The localisation estimate.
-    pub fn estimate(&self) -> PlanarPose {
+    pub fn estimate(&self) -> Pose2 {
         self.localiser.estimate()
     }
 
@@ -457,8 +458,7 @@ impl MissionCore {
         let now = inputs.now;
         // Localisation: odometry, then fixes.
         let odo = inputs.base.odometry;
-        self.localiser
-            .on_odometry(PlanarPose::new(odo.x_m, odo.y_m, odo.yaw_rad));
+        self.localiser.on_odometry(odo.pose());
         for fix in inputs.fixes {
             if fix.stamp_ns > ns(now.saturating_add(self.config.fix_future_tolerance)) {
                 self.future_fixes += 1;
@@ -493,7 +493,7 @@ impl MissionCore {
                 }
                 continue;
             }
-            let pose = PlanarPose::new(pose[0], pose[1], pose[2]);
+            let pose = Pose2::new(pose[0], pose[1], pose[2]);
             let outcome = match fix.kind() {
                 Ok(PoseFixKind::Global) => {
                     let outcome = self.localiser.on_global_fix(pose, fix.stamp_ns);
@@ -916,7 +916,7 @@ impl MissionCore {
     fn start_unload(
         &mut self,
         step: &TaskStep,
-        at: PlanarPose,
+        at: Pose2,
         now: Duration,
         outputs: &mut CycleOutputs,
     ) -> Option<Phase> {

@@ -70,9 +70,9 @@ pub enum Job {
         /// Request id.
         id: u64,
         /// The estimate when the scan was taken.
-        prior: crate::localisation::PlanarPose,
+        prior: planar::Pose2,
         /// The odometry pose then.
-        odom: crate::localisation::PlanarPose,
+        odom: planar::Pose2,
         /// Points used in `points`.
         count: u16,
         /// The scan's points, base frame (m).
@@ -136,11 +136,7 @@ pub enum Answer {
     /// To an unload job.
     Unload(u64, Result<UnloadPlan, UnloadFailure>),
     /// A scan alignment and the odometry it was taken at.
-    Align(
-        u64,
-        super::scan_match::Alignment,
-        crate::localisation::PlanarPose,
-    ),
+    Align(u64, super::scan_match::Alignment, planar::Pose2),
 }
 
 /// The worker's handle.
