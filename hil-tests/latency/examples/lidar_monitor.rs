@@ -9,6 +9,7 @@
 //!
 //! `cargo run --release -p latency --example lidar_monitor -- [REVOLUTIONS]` (default 200).
 
+use planar::Pose2;
 use std::net::UdpSocket;
 use std::time::{Duration, Instant};
 
@@ -16,7 +17,7 @@ use grop_onboard::executive::range::{RangeSensor, Vlp16Sensor};
 use latency::stats::Summary;
 use motion_control::Twist;
 use motion_control::collision::{CollisionMonitor, MonitorConfig, MonitorMode, Obstacles};
-use world::{BasePose, LidarSpec, RayScene, RobotConfig, Scene};
+use world::{LidarSpec, RayScene, RobotConfig, Scene};
 
 fn main() -> anyhow::Result<()> {
     let revolutions: usize = std::env::args()
@@ -32,7 +33,7 @@ fn main() -> anyhow::Result<()> {
     let spec = LidarSpec::default();
     let rays = RayScene::from_scene(&scene);
     // Between the chairs at the near side of the banquet table, facing it.
-    let pose = BasePose {
+    let pose = Pose2 {
         x_m: 1.0,
         y_m: 4.9,
         yaw_rad: std::f64::consts::FRAC_PI_2,

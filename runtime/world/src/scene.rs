@@ -5,6 +5,7 @@
 //! overlapping furniture, targets off the banquet table and furniture outside the room are errors
 //! that name the file and the field.
 
+use planar::Pose2;
 use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
@@ -194,18 +195,6 @@ pub struct Point2 {
     pub x_m: f64,
     /// World y (m).
     pub y_m: f64,
-}
-
-/// A planar pose (m, rad).
-#[derive(Serialize, Deserialize, Clone, Copy, Debug, PartialEq)]
-#[serde(deny_unknown_fields)]
-pub struct Pose2 {
-    /// World x (m).
-    pub x_m: f64,
-    /// World y (m).
-    pub y_m: f64,
-    /// Heading about +z (rad).
-    pub yaw_rad: f64,
 }
 
 impl Room {

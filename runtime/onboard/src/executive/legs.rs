@@ -372,7 +372,7 @@ impl MissionCore {
         !world::base_collides(
             &self.scene,
             robot,
-            world::BasePose {
+            planar::Pose2 {
                 x_m: x - c * d,
                 y_m: y - s * d,
                 yaw_rad: heading,

@@ -929,11 +929,7 @@ impl MissionCore {
         self.next_job_id += 1;
         outputs.job = Some(Job::Unload {
             id,
-            base: ur5e_kin::BasePose {
-                x_m: at.x_m,
-                y_m: at.y_m,
-                yaw_rad: at.yaw_rad,
-            },
+            base: at,
             target: step.target_m,
             from_slot: self.tray.pick_above[slot.min(self.tray.pick_above.len() - 1)],
             carry: self.tray.carry,

@@ -514,8 +514,7 @@ impl<D: BaseDevice, A: ArmDevice> Executive<D, A> {
                 Some(Answer::Align(_, alignment, odom)) => {
                     self.align_in_flight = false;
                     if alignment.accepted() {
-                        let p = alignment.pose;
-                        self.aligned = Some((Pose2::new(p.x_m, p.y_m, p.yaw_rad), odom));
+                        self.aligned = Some((alignment.pose, odom));
                     } else {
                         self.alignments_refused += 1;
                     }

@@ -6,12 +6,13 @@
 //! a simulated clock the path takes no simulated time and a run replays the same way; on the
 //! robot the hold does nothing and the base simply waits a cycle or two.
 
+use planar::Pose2;
 use std::sync::Arc;
 
 use grop_clock::Clock;
 use std::sync::mpsc::{Receiver, SyncSender, TrySendError, sync_channel};
 
-use ur5e_kin::{BasePose, Joints};
+use ur5e_kin::Joints;
 use world::nav::OccupancyGrid;
 use world::{RobotConfig, Scene};
 
@@ -55,7 +56,7 @@ pub enum Job {
         /// Request id.
         id: u64,
         /// Measured base pose.
-        base: BasePose,
+        base: Pose2,
         /// Object goal, world (m).
         target: [f64; 3],
         /// Joints over the object's tray slot (where the transit starts).
