@@ -1,11 +1,13 @@
 //! The one planar pose and angle wrap of the workspace, `#![no_std]` and without heap.
 //!
 //! - [`wrap_angle`] / [`wrap_angle_f32`]: an angle into the half-open interval **(-pi, pi]**
-//!   (pi itself stays pi; -pi becomes pi). The wrap is exact: an angle already in the interval
-//!   comes back with the same bits (so wrapping twice is wrapping once), and any other finite
-//!   angle comes back as the float remainder modulo the float `TAU`, moved by one `TAU` at most,
-//!   with no rounding anywhere (`%` is exact, and the one addition or subtraction of `TAU` is
-//!   exact by Sterbenz's lemma). NaN and infinities give NaN.
+//!   (pi itself stays pi; -pi becomes pi). The arithmetic is the one ur5e-kin's inverse
+//!   kinematics, world's lattice and the simulated lidar had (ur5e-kin's joint-path tests get
+//!   their scenario's IK branch from a tie that close): the Euclidean remainder modulo the float `TAU` (`%` is exact, then one
+//!   addition of `TAU` for a negative remainder, which rounds), less `TAU` above pi (exact, by
+//!   Sterbenz's lemma). So an angle in [0, pi] keeps its bits, a negative one comes back rounded
+//!   to the spacing of floats near `TAU` (8.9e-16 rad in f64), and wrapping twice is wrapping
+//!   once, to the bit. NaN and infinities give NaN.
 //! - [`Pose2`] (f64: the world, the planners, the executive, the simulators) and [`Pose2F32`]
 //!   (f32: the firmware-like control laws): x, y (m) and yaw (rad, counter-clockwise from +x),
 //!   with composition, inverse, point transforms, distance and arc motion. The two have the
@@ -89,33 +91,26 @@ macro_rules! wrap_fn {
         #[inline]
         pub fn $name(rad: $t) -> $t {
             use core::$t::consts::{PI, TAU};
-            if rad > -PI && rad <= PI {
-                return rad;
-            }
-            // Exact: the remainder has the dividend's sign and |rem| < TAU.
+            // The Euclidean remainder in [0, TAU] (TAU only where a tiny negative remainder
+            // rounds up to it), as std's `rem_euclid`, which core lacks: `%` is exact.
             let rem = rad % TAU;
-            if rem > PI {
-                // rem in (PI, TAU): TAU / 2 <= rem <= 2 TAU, so the difference is exact.
-                rem - TAU
-            } else if rem <= -PI {
-                // rem in (-TAU, -PI]: exact for the same reason.
-                rem + TAU
-            } else {
-                rem
-            }
+            let rem = if rem < 0.0 { rem + TAU } else { rem };
+            // Above pi: one turn less; rem in (PI, TAU], so the difference is exact.
+            if rem > PI { rem - TAU } else { rem }
         }
     };
 }
 
 wrap_fn!(
-    /// Wraps an angle (rad) into (-pi, pi], exactly (see the crate docs): an angle already in
-    /// the interval is returned unchanged; NaN and infinities give NaN.
+    /// Wraps an angle (rad) into (-pi, pi] (see the crate docs for the rounding: an angle in
+    /// [0, pi] is returned unchanged, a negative one to 8.9e-16 rad); NaN and infinities give
+    /// NaN.
     wrap_angle,
     f64
 );
 wrap_fn!(
-    /// [`wrap_angle`] in f32: into (-pi, pi] of f32's pi, exactly, unchanged when already
-    /// inside; NaN and infinities give NaN.
+    /// [`wrap_angle`] in f32: into (-pi, pi] of f32's pi, the same arithmetic (an angle in
+    /// [0, pi] unchanged, a negative one rounded to 4.8e-7 rad); NaN and infinities give NaN.
     wrap_angle_f32,
     f32
 );

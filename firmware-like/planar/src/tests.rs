@@ -19,18 +19,39 @@ fn wrap_is_half_open_at_pi() {
 }
 
 #[test]
-fn wrap_leaves_angles_inside_untouched_and_moves_the_rest_by_whole_turns() {
-    for a in [0.0, -0.5, 0.5, 1e-300, -1e-300, PI - 1e-15, -PI + 1e-15] {
+fn wrap_keeps_angles_in_zero_to_pi_and_rounds_negative_ones_near_tau() {
+    for a in [0.0, 0.5, 1e-300, FRAC_PI_2, PI - 1e-15] {
         assert_eq!(wrap_angle(a).to_bits(), a.to_bits(), "{a}");
     }
+    // A negative angle goes through a + TAU: rounded to the float spacing near TAU.
+    let spacing = 8.9e-16;
+    for a in [-0.5, -FRAC_PI_2, -PI + 1e-15, -1e-9] {
+        assert!((wrap_angle(a) - a).abs() <= spacing, "{a}");
+    }
+    assert_eq!(wrap_angle(-1e-300), 0.0, "rounds up to a whole turn");
     assert!((wrap_angle(TAU + 0.1) - 0.1).abs() < 1e-15);
     assert!((wrap_angle(-TAU - 0.1) + 0.1).abs() < 1e-15);
     assert!((wrap_angle(3.0 * TAU + 0.5) - 0.5).abs() < 1e-14);
     assert!((wrap_angle(-FRAC_PI_2 - TAU) + FRAC_PI_2).abs() < 1e-15);
     assert!((wrap_angle_f32(2.0 * core::f32::consts::PI + 0.1) - 0.1).abs() < 1e-6);
-    assert!(
-        (wrap_angle_f32(-core::f32::consts::FRAC_PI_2) + core::f32::consts::FRAC_PI_2).abs() == 0.0
-    );
+    let f = wrap_angle_f32(-core::f32::consts::FRAC_PI_2);
+    assert!((f + core::f32::consts::FRAC_PI_2).abs() <= 4.8e-7);
+}
+
+#[test]
+fn wrap_is_the_arithmetic_ur5e_kin_had() {
+    // ur5e-kin's wrap_to_pi, as it was: its IK branch choices depend on these bits.
+    fn had(a: f64) -> f64 {
+        let mut w = a.rem_euclid(TAU);
+        if w > PI {
+            w -= TAU;
+        }
+        w
+    }
+    for k in -2000..2000 {
+        let a = f64::from(k) * 0.0137 + 1e-3 * f64::from(k % 7);
+        assert_eq!(wrap_angle(a).to_bits(), had(a).to_bits(), "{a}");
+    }
 }
 
 #[test]
