@@ -25,8 +25,9 @@
 //! It is not a certified safety function; a real robot also needs a hardware e-stop chain and
 //! a safety-rated scanner on the base's safety inputs.
 
-use crate::Twist;
 use planar::Pose2F32;
+
+use crate::Twist;
 
 /// Bearing bins of an [`Obstacles`] set (0.5 deg each).
 pub const BINS: usize = 720;

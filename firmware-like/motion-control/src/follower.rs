@@ -3,9 +3,9 @@
 //! slow down so that the base can stop at the last point with the deceleration limit.
 
 use heapless::Vec;
+use planar::{Pose2F32, wrap_angle_f32};
 
 use crate::Twist;
-use planar::{Pose2F32, wrap_angle_f32};
 
 /// At the end of a docking line ([`PathFollower::set_line`]), a goal that lies more to the side
 /// than ahead within this fraction of the look-ahead distance counts as reached.

@@ -24,7 +24,6 @@ pub mod objects;
 pub mod report;
 pub mod suite;
 
-use planar::Pose2;
 use std::time::{Duration, Instant};
 
 use can_bus::VirtualCanBus;
@@ -34,6 +33,7 @@ use grop_ipc::{
     ProcessRole, TaskPlanMsg, TaskStepKind, TopicPublisher, TopicSubscriber,
 };
 use nalgebra::Point3;
+use planar::Pose2;
 use sim_rmp::{SimRmp, SimRmpNode};
 use sim_ur5e::Ur5eSim;
 use ur5e_kin::ObstacleBox;

@@ -4,9 +4,9 @@
 //! lock-step, the world sends every packet whose last firing lies at or before the step's time
 //! before it advances the clock, so a replayed mission gets the same packets.
 
-use planar::Pose2;
 use std::net::{SocketAddr, UdpSocket};
 
+use planar::Pose2;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};

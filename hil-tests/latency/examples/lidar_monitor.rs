@@ -9,7 +9,6 @@
 //!
 //! `cargo run --release -p latency --example lidar_monitor -- [REVOLUTIONS]` (default 200).
 
-use planar::Pose2;
 use std::net::UdpSocket;
 use std::time::{Duration, Instant};
 
@@ -17,6 +16,7 @@ use grop_onboard::executive::range::{RangeSensor, Vlp16Sensor};
 use latency::stats::Summary;
 use motion_control::Twist;
 use motion_control::collision::{CollisionMonitor, MonitorConfig, MonitorMode, Obstacles};
+use planar::Pose2;
 use world::{LidarSpec, RayScene, RobotConfig, Scene};
 
 fn main() -> anyhow::Result<()> {

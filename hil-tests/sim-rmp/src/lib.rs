@@ -22,12 +22,12 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 
-use planar::{Pose2, wrap_angle};
 use std::time::Duration;
 
 use can_bus::{CanBus, CanFrame, CanId, RecvError, SendError};
 use log::{debug, info};
 use motion_control::limiter::slew;
+use planar::{Pose2, wrap_angle};
 use rmp_codec::RawFrame;
 use rmp_codec::faults::{self, FaultBit, FaultStatus};
 use rmp_codec::feedback::{FeedbackBitmaps, FeedbackItem, FeedbackLayout, FeedbackSet};

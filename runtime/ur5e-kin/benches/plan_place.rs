@@ -2,11 +2,11 @@
 //! dataset generator's workload, plus single representative queries.
 
 use core::f64::consts::FRAC_PI_2;
-use planar::Pose2;
 use std::hint::black_box;
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use nalgebra::{Isometry3, Point3};
+use planar::Pose2;
 use ur5e_kin::bench_scene::dinner_table_queries;
 use ur5e_kin::{ObstacleBox, PlaceConfig, Ur5e, plan_place};
 

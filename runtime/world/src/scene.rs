@@ -5,9 +5,9 @@
 //! overlapping furniture, targets off the banquet table and furniture outside the room are errors
 //! that name the file and the field.
 
-use planar::Pose2;
 use std::path::{Path, PathBuf};
 
+use planar::Pose2;
 use serde::{Deserialize, Serialize};
 
 pub use crate::file::InvalidField;

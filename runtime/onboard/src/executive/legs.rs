@@ -7,12 +7,12 @@ use std::time::Duration;
 use grop_ipc::{EventKind, ReplanReason, TaskStep, TaskStepKind};
 use motion_control::Twist;
 use motion_control::follower::FollowStep;
+use planar::{Pose2, wrap_angle};
 
 use super::AbortReason;
 use super::cycle::{CycleInputs, CycleOutputs};
 use super::mission::{MissionCore, Phase};
 use super::worker::{Answer, Job, PathFailure, SeenPoints};
-use planar::{Pose2, wrap_angle};
 
 /// Legs that may fail in a row before the mission is given up.
 pub const MAX_FAILED_LEGS: u32 = 3;

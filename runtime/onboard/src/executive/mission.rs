@@ -19,6 +19,7 @@ use grop_ipc::{
 };
 use motion_control::Twist;
 use motion_control::follower::PathFollower;
+use planar::Pose2;
 use rmp_base::{BaseError, BaseMode, Tick};
 use ur5e_kin::Joints;
 use world::nav::OccupancyGrid;
@@ -32,7 +33,6 @@ use super::worker::{Answer, Job, MAX_PATH_POINTS};
 use super::{AbortReason, ExecutiveConfig, MAX_TRAY_SLOTS, MissionState};
 use crate::localisation::{FixOutcome, Localiser};
 pub(super) use grop_clock::duration_ns as ns;
-use planar::Pose2;
 
 /// The arm must reach its carry pose within this.
 const PARKING_TIMEOUT: Duration = Duration::from_secs(20);

@@ -15,6 +15,7 @@ use grop_ipc::{
     ArmSafety, ArmStateMsg, BaseMode as IpcBaseMode, BasePoseMsg, BaseStateMsg, EventMsg,
     HeartbeatMsg, IpcNode, ProcessRole, ReplanRequestMsg, TaskPlanMsg, TopicPublisher,
 };
+use planar::Pose2;
 use rmp_base::{BaseError, CanLink, RmpBase, Tick};
 use rmp_codec::v3::OperationalState;
 use world::Scene;
@@ -34,7 +35,6 @@ use super::{
     AbortReason, ArmDevice, ArmSnapshot, ExecutiveConfig, ExecutiveError, ExecutiveStats,
     MAX_TRAY_SLOTS, MissionState,
 };
-use planar::Pose2;
 
 /// Most pose fixes one base cycle takes in (the world sends one or two per cycle); the rest
 /// wait in the subscriber's queue for the next cycle.

@@ -7,10 +7,10 @@
 //! where noise put it and the arm makes up for it. The sequence advances one skill at a time
 //! through [`ArmPort`], polled once per arm cycle; it never blocks the executive.
 
-use planar::Pose2;
 use std::time::Duration;
 
 use nalgebra::Point3;
+use planar::Pose2;
 use ur5e_kin::{Joints, ObstacleBox, PlaceConfig, PlaceFailure, plan_place};
 
 /// How far above the target (and the tray slot) the gripper approaches and retreats, m.

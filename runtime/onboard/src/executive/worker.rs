@@ -6,12 +6,12 @@
 //! a simulated clock the path takes no simulated time and a run replays the same way; on the
 //! robot the hold does nothing and the base simply waits a cycle or two.
 
-use planar::Pose2;
 use std::sync::Arc;
 
 use grop_clock::Clock;
 use std::sync::mpsc::{Receiver, SyncSender, TrySendError, sync_channel};
 
+use planar::Pose2;
 use ur5e_kin::Joints;
 use world::nav::OccupancyGrid;
 use world::{RobotConfig, Scene};

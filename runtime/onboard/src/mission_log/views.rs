@@ -29,6 +29,7 @@ use grop_ipc::{
     ArmStateMsg, BaseStateMsg, EventKind, EventMsg, HeatmapsMsg, TaskPlanMsg, TaskStepKind,
 };
 use nalgebra::Isometry3;
+use planar::{Pose2, wrap_angle};
 use serde::Serialize;
 use world::view::{CELL_SIZE_M, world_to_cell};
 use world::{RobotConfig, Scene, Side};
@@ -39,7 +40,6 @@ use super::foxglove::{
     FrameTransforms, Grid, LinePrimitive, Log, PackedElementField, Pose, PosesInFrame, Quaternion,
     SceneEntity, SceneUpdate, SpherePrimitive, TextPrimitive, Time, Vector2, level, rgba, v3,
 };
-use planar::{Pose2, wrap_angle};
 
 /// The fixed frame.
 pub const MAP: &str = "map";
