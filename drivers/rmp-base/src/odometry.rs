@@ -5,6 +5,8 @@
 
 use std::time::Duration;
 
+use planar::{Pose2, wrap_angle};
+
 /// Pose and velocity of the base in its odometry frame (origin and heading where the driver
 /// started, x forward, counter-clockwise yaw).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -21,6 +23,13 @@ pub struct Odometry {
     pub yaw_rate_radps: f64,
     /// Clock time of the feedback set this comes from.
     pub stamp: Duration,
+}
+
+impl Odometry {
+    /// Where the base is, without the velocities.
+    pub fn pose(&self) -> Pose2 {
+        Pose2::new(self.x_m, self.y_m, self.yaw_rad)
+    }
 }
 
 /// Integrator readings of one feedback set.
@@ -59,7 +68,7 @@ impl DeadReckoning {
         let mid = o.yaw_rad + dyaw / 2.0;
         o.x_m += o.speed_mps * dt_s * mid.cos();
         o.y_m += o.speed_mps * dt_s * mid.sin();
-        o.yaw_rad = wrap(o.yaw_rad + dyaw);
+        o.yaw_rad = wrap_angle(o.yaw_rad + dyaw);
     }
 
     /// Integrates one feedback set. Wheel positions are physical (the right side advancing
@@ -76,18 +85,13 @@ impl DeadReckoning {
                 let mid = o.yaw_rad + dyaw / 2.0;
                 o.x_m += ds * mid.cos();
                 o.y_m += ds * mid.sin();
-                o.yaw_rad = wrap(o.yaw_rad + dyaw);
+                o.yaw_rad = wrap_angle(o.yaw_rad + dyaw);
             } else {
                 self.skipped_steps += 1;
             }
         }
         self.last = Some(now);
     }
-}
-
-fn wrap(a: f64) -> f64 {
-    let w = (a + std::f64::consts::PI).rem_euclid(2.0 * std::f64::consts::PI);
-    w - std::f64::consts::PI
 }
 
 #[cfg(test)]

@@ -193,10 +193,7 @@ impl Emitter {
                         + seq as f64 * SEQUENCE_PERIOD_US
                         + laser as f64 * LASER_PERIOD_US;
                     let clockwise_rad = self.azimuth_cdeg_at(t) * (PI / 18_000.0);
-                    let mut azimuth_rad = (-clockwise_rad).rem_euclid(2.0 * PI);
-                    if azimuth_rad > PI {
-                        azimuth_rad -= 2.0 * PI;
-                    }
+                    let azimuth_rad = planar::wrap_angle(-clockwise_rad);
                     let firing = Firing {
                         t_us: self.absolute_us(t),
                         azimuth_rad,

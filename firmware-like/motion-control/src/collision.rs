@@ -25,7 +25,9 @@
 //! It is not a certified safety function; a real robot also needs a hardware e-stop chain and
 //! a safety-rated scanner on the base's safety inputs.
 
-use crate::{Pose2, Twist};
+use planar::Pose2F32;
+
+use crate::Twist;
 
 /// Bearing bins of an [`Obstacles`] set (0.5 deg each).
 pub const BINS: usize = 720;
@@ -127,7 +129,7 @@ impl Obstacles {
     /// are not recomputed (a few centimetres of motion move a point by less than a bin at the
     /// ranges that matter). The stamp stays the scan's: moving old points does not make them
     /// fresh.
-    pub fn move_base(&mut self, motion: Pose2) {
+    pub fn move_base(&mut self, motion: Pose2F32) {
         let (s, c) = (libm::sinf(motion.yaw_rad), libm::cosf(motion.yaw_rad));
         for (p, r2) in self.points.iter_mut().zip(self.range2.iter_mut()) {
             if r2.is_finite() {
@@ -336,7 +338,7 @@ impl CollisionMonitor {
         if in_stop >= cfg.min_points {
             // Escape: allowed only if, one step on at crawl speed, the nearest point is farther.
             let slow = crawl(command);
-            let after = Pose2::default().integrate(slow, cfg.simulation_step_s);
+            let after = slow.motion_over(cfg.simulation_step_s);
             let escapes = moving && self.min_clearance_at(after) > clearance + 1e-4;
             return if escapes {
                 Verdict {
@@ -393,7 +395,7 @@ impl CollisionMonitor {
 
     /// The smallest signed distance between the footprint at `pose` (in the current base frame)
     /// and the kept points.
-    fn min_clearance_at(&self, pose: Pose2) -> f32 {
+    fn min_clearance_at(&self, pose: Pose2F32) -> f32 {
         let (s, c) = (libm::sinf(pose.yaw_rad), libm::cosf(pose.yaw_rad));
         let (hl, hw) = (self.config.half_length_m, self.config.half_width_m);
         self.obstacles
@@ -421,7 +423,7 @@ impl CollisionMonitor {
         let steps = libm::ceilf(horizon / step) as u32;
         for k in 1..=steps {
             let t = step * k as f32;
-            let pose = Pose2::default().integrate(twist, t);
+            let pose = twist.motion_over(t);
             let (s, c) = (libm::sinf(pose.yaw_rad), libm::cosf(pose.yaw_rad));
             let mut hits = 0u16;
             for [x, y] in self.obstacles.iter() {
@@ -591,7 +593,7 @@ mod tests {
         let mut o = Obstacles::new();
         o.clear(0);
         o.add(1.0, 0.0, [0.3, 0.275]);
-        o.move_base(Pose2::new(0.1, 0.0, core::f32::consts::FRAC_PI_2));
+        o.move_base(Pose2F32::new(0.1, 0.0, core::f32::consts::FRAC_PI_2));
         let p = o.iter().next().unwrap();
         assert!(
             (p[0] - 0.0).abs() < 1e-5 && (p[1] + 0.9).abs() < 1e-5,

@@ -3,8 +3,9 @@
 //! slow down so that the base can stop at the last point with the deceleration limit.
 
 use heapless::Vec;
+use planar::{Pose2F32, wrap_angle_f32};
 
-use crate::{Pose2, Twist, wrap_angle};
+use crate::Twist;
 
 /// At the end of a docking line ([`PathFollower::set_line`]), a goal that lies more to the side
 /// than ahead within this fraction of the look-ahead distance counts as reached.
@@ -150,7 +151,7 @@ impl<const N: usize> PathFollower<N> {
     }
 
     /// Remaining path length from the closest point, m.
-    pub fn remaining_m(&self, pose: &Pose2) -> f32 {
+    pub fn remaining_m(&self, pose: &Pose2F32) -> f32 {
         let Some(last) = self.path.last() else {
             return 0.0;
         };
@@ -165,7 +166,7 @@ impl<const N: usize> PathFollower<N> {
         total
     }
 
-    fn closest_on(&self, k: usize, pose: &Pose2) -> (f32, [f32; 2]) {
+    fn closest_on(&self, k: usize, pose: &Pose2F32) -> (f32, [f32; 2]) {
         let a = self.path[k];
         let b = self.path[k + 1];
         let ab = [b[0] - a[0], b[1] - a[1]];
@@ -180,7 +181,7 @@ impl<const N: usize> PathFollower<N> {
     }
 
     /// The look-ahead point: `lookahead_m` along the path from the projection of the pose.
-    fn lookahead_point(&self, pose: &Pose2) -> [f32; 2] {
+    fn lookahead_point(&self, pose: &Pose2F32) -> [f32; 2] {
         let last = self.path[self.path.len() - 1];
         if self.path.len() == 1 {
             return last;
@@ -204,7 +205,7 @@ impl<const N: usize> PathFollower<N> {
     }
 
     /// One control period at `pose`.
-    pub fn step(&mut self, pose: &Pose2) -> FollowStep {
+    pub fn step(&mut self, pose: &Pose2F32) -> FollowStep {
         let Some(&last) = self.path.last() else {
             return FollowStep::NoPath;
         };
@@ -231,7 +232,7 @@ impl<const N: usize> PathFollower<N> {
         // Look-ahead point in the body frame.
         let x_b = c * dx + s * dy;
         let y_b = -s * dx + c * dy;
-        let heading_error = wrap_angle(libm::atan2f(y_b, x_b));
+        let heading_error = wrap_angle_f32(libm::atan2f(y_b, x_b));
         let max_w = self.config.max_yaw_rate_radps;
         if heading_error.abs() > self.config.turn_in_place_above_rad {
             if self.in_line && to_goal <= ARRIVE_BESIDE_FACTOR * self.config.lookahead_m {
@@ -267,13 +268,15 @@ mod tests {
 
     fn drive<const N: usize>(
         f: &mut PathFollower<N>,
-        mut pose: Pose2,
+        mut pose: Pose2F32,
         steps: usize,
-    ) -> (Pose2, bool, f32) {
+    ) -> (Pose2F32, bool, f32) {
         let mut max_dev: f32 = 0.0;
         for _ in 0..steps {
             match f.step(&pose) {
-                FollowStep::Drive(t) => pose = pose.integrate(t, 0.02),
+                FollowStep::Drive(t) => {
+                    pose = pose.advance(t.speed_mps * 0.02, t.yaw_rate_radps * 0.02)
+                }
                 FollowStep::Arrived => return (pose, true, max_dev),
                 FollowStep::NoPath => return (pose, false, max_dev),
             }
@@ -294,16 +297,18 @@ mod tests {
             } else {
                 f.set_path(&[[0.0, 1.0], [0.0, 0.0]]).unwrap();
             }
-            let mut pose = Pose2::new(0.06, 0.03, -core::f32::consts::FRAC_PI_2);
+            let mut pose = Pose2F32::new(0.06, 0.03, -core::f32::consts::FRAC_PI_2);
             let mut worst_turn: f32 = 0.0;
             for _ in 0..500 {
                 match f.step(&pose) {
-                    FollowStep::Drive(t) => pose = pose.integrate(t, 0.02),
+                    FollowStep::Drive(t) => {
+                        pose = pose.advance(t.speed_mps * 0.02, t.yaw_rate_radps * 0.02)
+                    }
                     FollowStep::Arrived => return (true, worst_turn, pose),
                     FollowStep::NoPath => break,
                 }
-                worst_turn =
-                    worst_turn.max(wrap_angle(pose.yaw_rad + core::f32::consts::FRAC_PI_2).abs());
+                worst_turn = worst_turn
+                    .max(wrap_angle_f32(pose.yaw_rad + core::f32::consts::FRAC_PI_2).abs());
             }
             (false, worst_turn, pose)
         };
@@ -319,7 +324,7 @@ mod tests {
         // A line whose goal is still ahead is driven as a path.
         let mut f: PathFollower<8> = PathFollower::new(FollowerConfig::default());
         f.set_line([0.0, 1.0], [0.0, 0.0]).unwrap();
-        let ahead = Pose2::new(0.06, 0.5, -core::f32::consts::FRAC_PI_2);
+        let ahead = Pose2F32::new(0.06, 0.5, -core::f32::consts::FRAC_PI_2);
         assert!(matches!(f.step(&ahead), FollowStep::Drive(_)));
     }
 
@@ -327,7 +332,7 @@ mod tests {
     fn follows_an_l_shaped_path_to_the_goal() {
         let mut f: PathFollower<16> = PathFollower::new(FollowerConfig::default());
         f.set_path(&[[0.0, 0.0], [2.0, 0.0], [2.0, 2.0]]).unwrap();
-        let (pose, arrived, max_dev) = drive(&mut f, Pose2::default(), 2000);
+        let (pose, arrived, max_dev) = drive(&mut f, Pose2F32::default(), 2000);
         assert!(arrived, "did not arrive: {pose:?}");
         assert!(libm::hypotf(pose.x_m - 2.0, pose.y_m - 2.0) <= 0.05);
         // Corner cutting stays within the look-ahead distance.
@@ -338,14 +343,14 @@ mod tests {
     fn turns_in_place_when_the_path_is_behind() {
         let mut f: PathFollower<4> = PathFollower::new(FollowerConfig::default());
         f.set_path(&[[0.0, 0.0], [-2.0, 0.0]]).unwrap();
-        match f.step(&Pose2::default()) {
+        match f.step(&Pose2F32::default()) {
             FollowStep::Drive(t) => {
                 assert_eq!(t.speed_mps, 0.0);
                 assert_eq!(t.yaw_rate_radps.abs(), 1.0);
             }
             other => panic!("{other:?}"),
         }
-        let (_, arrived, _) = drive(&mut f, Pose2::default(), 2000);
+        let (_, arrived, _) = drive(&mut f, Pose2F32::default(), 2000);
         assert!(arrived);
     }
 
@@ -353,10 +358,10 @@ mod tests {
     fn slows_down_before_the_goal_and_rejects_bad_paths() {
         let mut f: PathFollower<4> = PathFollower::new(FollowerConfig::default());
         f.set_path(&[[0.0, 0.0], [1.0, 0.0]]).unwrap();
-        let FollowStep::Drive(far) = f.step(&Pose2::default()) else {
+        let FollowStep::Drive(far) = f.step(&Pose2F32::default()) else {
             panic!()
         };
-        let FollowStep::Drive(near) = f.step(&Pose2::new(0.9, 0.0, 0.0)) else {
+        let FollowStep::Drive(near) = f.step(&Pose2F32::new(0.9, 0.0, 0.0)) else {
             panic!()
         };
         assert_eq!(far.speed_mps, 0.4);
@@ -374,6 +379,6 @@ mod tests {
             Err(PathError::NonFinite { index: 0 })
         );
         f.clear();
-        assert_eq!(f.step(&Pose2::default()), FollowStep::NoPath);
+        assert_eq!(f.step(&Pose2F32::default()), FollowStep::NoPath);
     }
 }

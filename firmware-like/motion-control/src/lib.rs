@@ -37,6 +37,8 @@ pub mod limiter;
 pub mod mode;
 pub mod watchdog;
 
+use planar::Pose2F32;
+
 /// Body-frame velocity of a unicycle base: forward speed and yaw rate (counter-clockwise
 /// positive, seen from above).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -66,52 +68,12 @@ impl Twist {
     pub fn is_finite(&self) -> bool {
         self.speed_mps.is_finite() && self.yaw_rate_radps.is_finite()
     }
-}
 
-/// Planar pose of the base in the world frame.
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
-pub struct Pose2 {
-    /// x, m.
-    pub x_m: f32,
-    /// y, m.
-    pub y_m: f32,
-    /// Heading, rad, counter-clockwise from +x.
-    pub yaw_rad: f32,
-}
-
-impl Pose2 {
-    /// A pose.
-    pub const fn new(x_m: f32, y_m: f32, yaw_rad: f32) -> Self {
-        Self { x_m, y_m, yaw_rad }
+    /// Where a base that holds this twist for `dt_s` ends up, in the frame it started in: the
+    /// exact arc ([`Pose2F32::advance`]).
+    pub fn motion_over(&self, dt_s: f32) -> Pose2F32 {
+        Pose2F32::IDENTITY.advance(self.speed_mps * dt_s, self.yaw_rate_radps * dt_s)
     }
-
-    /// Unicycle motion for `dt_s` at constant `twist`, integrated exactly along the arc.
-    pub fn integrate(&self, twist: Twist, dt_s: f32) -> Self {
-        let dtheta = twist.yaw_rate_radps * dt_s;
-        let ds = twist.speed_mps * dt_s;
-        // Midpoint heading is exact for a circular arc once the chord length is used.
-        let chord = if dtheta.abs() < 1e-6 {
-            ds
-        } else {
-            2.0 * ds / dtheta * libm::sinf(dtheta / 2.0)
-        };
-        let mid = self.yaw_rad + dtheta / 2.0;
-        Self {
-            x_m: self.x_m + chord * libm::cosf(mid),
-            y_m: self.y_m + chord * libm::sinf(mid),
-            yaw_rad: wrap_angle(self.yaw_rad + dtheta),
-        }
-    }
-}
-
-/// Wraps an angle into (-pi, pi].
-pub fn wrap_angle(rad: f32) -> f32 {
-    let two_pi = 2.0 * core::f32::consts::PI;
-    let mut a = libm::fmodf(rad + core::f32::consts::PI, two_pi);
-    if a <= 0.0 {
-        a += two_pi;
-    }
-    a - core::f32::consts::PI
 }
 
 #[cfg(test)]
@@ -121,24 +83,18 @@ mod tests {
 
     #[test]
     fn full_circle_returns_to_start() {
-        let mut p = Pose2::default();
+        let mut p = Pose2F32::IDENTITY;
         // 1 rad/s at 1 m/s: radius 1, full circle in 2 pi s.
         let twist = Twist::new(1.0, 1.0);
         let steps = 629;
         for _ in 0..steps {
-            p = p.integrate(twist, 2.0 * PI / steps as f32);
+            let dt = 2.0 * PI / steps as f32;
+            p = p.advance(twist.speed_mps * dt, twist.yaw_rate_radps * dt);
         }
         assert!(p.x_m.abs() < 1e-3 && p.y_m.abs() < 1e-3, "{p:?}");
         // Quarter circle: ends at (1, 1) heading +y.
-        let q = Pose2::default().integrate(twist, PI / 2.0);
+        let q = twist.motion_over(PI / 2.0);
         assert!((q.x_m - 1.0).abs() < 1e-5 && (q.y_m - 1.0).abs() < 1e-5);
         assert!((q.yaw_rad - PI / 2.0).abs() < 1e-5);
-    }
-
-    #[test]
-    fn wrap_angle_range() {
-        assert!((wrap_angle(3.0 * PI) - PI).abs() < 1e-5);
-        assert!((wrap_angle(-PI / 2.0) + PI / 2.0).abs() < 1e-6);
-        assert!((wrap_angle(2.0 * PI + 0.1) - 0.1).abs() < 1e-5);
     }
 }

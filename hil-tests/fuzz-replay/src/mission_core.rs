@@ -32,8 +32,8 @@ use grop_onboard::executive::worker::{
 use grop_onboard::executive::{
     ArmCommand, ArmSnapshot, BaseReading, CycleInputs, CycleOutputs, ExecutiveConfig, MissionCore,
 };
-use grop_onboard::localisation::PlanarPose;
 use motion_control::Twist;
+use planar::Pose2;
 use rmp_base::{BaseError, BaseMode, Odometry, Tick};
 use world::nav::OccupancyGrid;
 use world::{RobotConfig, Scene};
@@ -110,8 +110,8 @@ fn joints(b: &mut Bytes<'_>) -> [f64; 6] {
     std::array::from_fn(|_| num(b))
 }
 
-fn pose(b: &mut Bytes<'_>) -> PlanarPose {
-    PlanarPose::new(num(b), num(b), num(b))
+fn pose(b: &mut Bytes<'_>) -> Pose2 {
+    Pose2::new(num(b), num(b), num(b))
 }
 
 fn arm_fault(k: u8) -> ArmFault {

@@ -32,10 +32,11 @@ use grop_ipc::{
     BasePoseMsg, CameraFrameMsg, EventMsg, HeartbeatMsg, IpcNode, LoadRequestMsg, PoseFixKind,
     ProcessRole, TaskPlanMsg, TaskStepKind, TopicPublisher, TopicSubscriber,
 };
-use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
+use nalgebra::Point3;
+use planar::Pose2;
 use sim_rmp::{SimRmp, SimRmpNode};
 use sim_ur5e::Ur5eSim;
-use ur5e_kin::{BasePose, ObstacleBox};
+use ur5e_kin::ObstacleBox;
 use world::{RobotConfig, Scene};
 
 use faults::{CanFault, FaultKind, FaultRecord, FaultSpec, FaultyBus, Trigger};
@@ -209,7 +210,7 @@ pub struct World {
     ports: Ports,
     objects: ObjectTracker,
     fixes: FixSimulator,
-    start: BasePose,
+    start: Pose2,
     lidar: Option<lidar::SimLidar>,
     _node: IpcNode,
 }
@@ -295,12 +296,7 @@ impl World {
         } else {
             None
         };
-        let s = config.scene.robot_start;
-        let start = BasePose {
-            x_m: s.x_m,
-            y_m: s.y_m,
-            yaw_rad: s.yaw_rad,
-        };
+        let start = config.scene.robot_start;
         Ok(Self {
             config,
             host,
@@ -337,14 +333,8 @@ impl World {
     }
 
     /// The true base pose in the world.
-    fn base_pose(&self) -> BasePose {
-        let p = self.base.sim().pose();
-        let (s, c) = self.start.yaw_rad.sin_cos();
-        BasePose {
-            x_m: self.start.x_m + c * p.x_m - s * p.y_m,
-            y_m: self.start.y_m + s * p.x_m + c * p.y_m,
-            yaw_rad: world_wrap(self.start.yaw_rad + p.yaw_rad),
-        }
+    fn base_pose(&self) -> Pose2 {
+        self.start.compose(&self.base.sim().pose())
     }
 
     /// Runs the mission to its end and returns the report. `stop` is polled every step (a
@@ -512,10 +502,7 @@ impl World {
             let (v, w) = self.base.sim().velocity();
             let speed = f64::from(v).abs() + 0.3 * f64::from(w).abs();
             self.fixes.observe_motion(speed, secs(dt));
-            let world_from_base = Isometry3::from_parts(
-                Translation3::new(pose.x_m, pose.y_m, 0.0),
-                UnitQuaternion::from_axis_angle(&Vector3::z_axis(), pose.yaw_rad),
-            );
+            let world_from_base = ur5e_kin::world_from_base(&pose);
             let snap = self.arm.snapshot();
             report.max_base_speed.0 = report.max_base_speed.0.max(f64::from(v).abs());
             report.max_base_speed.1 = report.max_base_speed.1.max(f64::from(w).abs());
@@ -1068,12 +1055,6 @@ fn ns_to_s(ns: u64) -> f64 {
 
 fn max_abs(v: &[f64; 6]) -> f64 {
     v.iter().fold(0.0, |m, x| m.max(x.abs()))
-}
-
-fn world_wrap(a: f64) -> f64 {
-    use std::f64::consts::{PI, TAU};
-    let w = (a + PI).rem_euclid(TAU) - PI;
-    if w <= -PI { w + TAU } else { w }
 }
 
 /// The banquet table's long edge on the side of `y`.

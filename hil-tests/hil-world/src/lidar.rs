@@ -6,10 +6,11 @@
 
 use std::net::{SocketAddr, UdpSocket};
 
+use planar::Pose2;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
-use world::{BasePose, LidarSpec, RayScene, Scene};
+use world::{LidarSpec, RayScene, Scene};
 
 /// Reflectivity reported for every return (the world has no materials).
 const REFLECTIVITY: u8 = 40;
@@ -83,7 +84,7 @@ impl SimLidar {
     }
 
     /// Sends every packet due by `now_us` (simulated microseconds), cast from `pose`.
-    pub fn step(&mut self, now_us: u64, pose: BasePose) {
+    pub fn step(&mut self, now_us: u64, pose: Pose2) {
         let m = self.spec.mount;
         let (sb, cb) = pose.yaw_rad.sin_cos();
         let origin_xy = [
@@ -130,7 +131,7 @@ mod tests {
         let mut lidar = SimLidar::new(&scene, LidarSpec::default(), 1).expect("lidar");
         let rx = UdpSocket::bind(("127.0.0.1", lidar.port())).expect("bind");
         rx.set_nonblocking(true).expect("nonblocking");
-        let pose = BasePose {
+        let pose = Pose2 {
             x_m: 1.0,
             y_m: 1.0,
             yaw_rad: 0.0,

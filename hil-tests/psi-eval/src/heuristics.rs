@@ -12,13 +12,14 @@
 //!
 //! The heuristics fill the paper's candidate area (the cells Smp draws from) and leave 0 elsewhere.
 
+use planar::Pose2;
 use planner::feasibility::{
     FeasibilityError, FeasibilityEvaluator, FeasibilityQuery, check_output_count,
 };
 use rayon::prelude::*;
 use trial_sim::ArmModel;
 use world::view::{CROP_COLS, candidate_cells, cell_center_world};
-use world::{BasePose, Heatmap, PlaceConfig, RobotConfig, Scene, Side, base_collides};
+use world::{Heatmap, PlaceConfig, RobotConfig, Scene, Side, base_collides};
 
 /// Horizontal distances from the arm base axis to the object goal at which the arm can place it
 /// (no obstacles), found by probing the arm's own kinematics (`trial_sim::Ur5eArm`).
@@ -52,7 +53,7 @@ impl ReachAnnulus {
                 let r = i as f64 * PROBE_STEP_M;
                 // Arm base at goal - r * (cos dir, sin dir): in front of the table for dir ~ +y.
                 let (ax, ay) = (goal.x - r * dir.cos(), goal.y - r * dir.sin());
-                let base = BasePose {
+                let base = Pose2 {
                     x_m: ax - mx,
                     y_m: ay - my,
                     yaw_rad: yaw,
@@ -68,7 +69,7 @@ impl ReachAnnulus {
     }
 
     /// Whether the arm base of a base at `base` is within the annulus around `target`.
-    pub fn contains(&self, place: &PlaceConfig, base: BasePose, target: [f64; 3]) -> bool {
+    pub fn contains(&self, place: &PlaceConfig, base: Pose2, target: [f64; 3]) -> bool {
         let (mx, my) = mount_offset_world(place, base.yaw_rad);
         let d = (base.x_m + mx - target[0]).hypot(base.y_m + my - target[1]);
         (self.min_m..=self.max_m).contains(&d)
@@ -112,7 +113,7 @@ fn annulus_and_free(
     scene: &Scene,
     robot: &RobotConfig,
     annulus: &ReachAnnulus,
-    base: BasePose,
+    base: Pose2,
     target: [f64; 3],
 ) -> bool {
     annulus.contains(&robot.place, base, target) && !base_collides(scene, robot, base)
@@ -150,7 +151,7 @@ impl FeasibilityEvaluator for BinaryAnnulusEvaluator {
             let yaw = q.side.facing_yaw_rad();
             for (r, c) in candidate_cells() {
                 let (x, y) = cell_center_world(q.target[0], q.side, r, c);
-                let base = BasePose {
+                let base = Pose2 {
                     x_m: x,
                     y_m: y,
                     yaw_rad: yaw,
@@ -224,7 +225,7 @@ impl FeasibilityEvaluator for BlurredAnnulusEvaluator {
                 let value: f64 = stencil
                     .iter()
                     .filter(|(u, v, _)| {
-                        let base = BasePose {
+                        let base = Pose2 {
                             x_m: x + sigma * u,
                             y_m: y + sigma * v,
                             yaw_rad: yaw,

@@ -27,6 +27,7 @@ use std::time::Duration;
 use can_bus::{CanBus, CanFrame, CanId, RecvError, SendError};
 use log::{debug, info};
 use motion_control::limiter::slew;
+use planar::{Pose2, wrap_angle};
 use rmp_codec::RawFrame;
 use rmp_codec::faults::{self, FaultBit, FaultStatus};
 use rmp_codec::feedback::{FeedbackBitmaps, FeedbackItem, FeedbackLayout, FeedbackSet};
@@ -73,17 +74,6 @@ impl Default for SimConfig {
     }
 }
 
-/// Ground-truth pose of the simulated base (odometry frame = where it powered on).
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
-pub struct SimPose {
-    /// x, m.
-    pub x_m: f64,
-    /// y, m.
-    pub y_m: f64,
-    /// Heading, rad (counter-clockwise).
-    pub yaw_rad: f64,
-}
-
 /// Counters for tests and logs.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct SimStats {
@@ -104,14 +94,14 @@ pub struct SimStats {
 /// Where the base and its wheels are: what [`SimRmp::block`] puts back.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct Kinematics {
-    pose: SimPose,
+    pose: Pose2,
     linear_position_m: f64,
     wheel_positions_m: [f64; 4],
 }
 
 impl Kinematics {
     /// The pose.
-    pub fn pose(&self) -> SimPose {
+    pub fn pose(&self) -> Pose2 {
         self.pose
     }
 }
@@ -137,7 +127,7 @@ pub struct SimRmp {
     speed_mps: f32,
     yaw_rate_radps: f32,
     linear_accel_mps2: f32,
-    pose: SimPose,
+    pose: Pose2,
     linear_position_m: f64,
     /// Right-front, left-front, right-rear, left-rear wheel positions, m.
     wheel_positions_m: [f64; 4],
@@ -169,7 +159,7 @@ impl SimRmp {
             speed_mps: 0.0,
             yaw_rate_radps: 0.0,
             linear_accel_mps2: 0.0,
-            pose: SimPose::default(),
+            pose: Pose2::default(),
             linear_position_m: 0.0,
             wheel_positions_m: [0.0; 4],
             time: Duration::ZERO,
@@ -235,7 +225,7 @@ impl SimRmp {
     }
 
     /// Ground-truth pose.
-    pub fn pose(&self) -> SimPose {
+    pub fn pose(&self) -> Pose2 {
         self.pose
     }
 
@@ -509,7 +499,7 @@ impl SimRmp {
         let mid = self.pose.yaw_rad + dtheta / 2.0;
         self.pose.x_m += chord * mid.cos();
         self.pose.y_m += chord * mid.sin();
-        self.pose.yaw_rad = wrap(self.pose.yaw_rad + dtheta);
+        self.pose.yaw_rad = wrap_angle(self.pose.yaw_rad + dtheta);
         self.linear_position_m += v * dt;
         let half_track = self.nvm(NvmFloat::TrackWidthM) as f64 / 2.0;
         let right = (v + w * half_track) * dt;
@@ -594,10 +584,6 @@ impl SimRmp {
             _ => 0,
         }
     }
-}
-
-fn wrap(a: f64) -> f64 {
-    (a + std::f64::consts::PI).rem_euclid(2.0 * std::f64::consts::PI) - std::f64::consts::PI
 }
 
 /// Why the simulator's bus node failed.

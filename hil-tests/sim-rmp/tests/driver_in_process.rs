@@ -7,10 +7,11 @@ use std::time::Duration;
 
 use can_bus::{MemoryBus, MemoryBusNode};
 use motion_control::Twist;
+use planar::Pose2;
 use rmp_base::{BaseError, BaseMode, CanLink, Odometry, RmpBase, RmpBaseConfig};
 use rmp_codec::faults;
 use rmp_codec::v3::{NvmFloat, OperationalState};
-use sim_rmp::{SimConfig, SimPose, SimRmp, SimRmpNode};
+use sim_rmp::{SimConfig, SimRmp, SimRmpNode};
 
 const PERIOD: Duration = Duration::from_millis(20);
 
@@ -74,7 +75,7 @@ impl Rig {
     }
 }
 
-fn mission(yaw_sign: f64) -> (Odometry, SimPose) {
+fn mission(yaw_sign: f64) -> (Odometry, Pose2) {
     let mut rig = Rig::new(yaw_sign);
     rig.enter_tractor();
     assert_eq!(rig.sim.sim().state(), OperationalState::Tractor);

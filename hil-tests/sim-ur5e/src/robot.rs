@@ -13,7 +13,8 @@
 use std::f64::consts::PI;
 
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
-use ur5e_kin::{Joints, Ur5e, wrap_to_pi};
+use planar::wrap_angle;
+use ur5e_kin::{Joints, Ur5e};
 
 use crate::gripper::GripperModel;
 use crate::inputs::InputTable;
@@ -740,7 +741,7 @@ impl RobotModel {
         let mut best: Option<(f64, Joints)> = None;
         self.kin.inverse_matrix(&r, &p, near[5], |sol| {
             // Each joint's representative nearest the reference angle (the short way round).
-            let cand: Joints = core::array::from_fn(|i| near[i] + wrap_to_pi(sol[i] - near[i]));
+            let cand: Joints = core::array::from_fn(|i| near[i] + wrap_angle(sol[i] - near[i]));
             let within = cand.iter().all(|v| v.abs() <= 2.0 * PI) && cand[2].abs() <= PI;
             if within {
                 let cost = cand

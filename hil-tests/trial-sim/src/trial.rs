@@ -3,10 +3,11 @@
 //! ask the arm for a collision-free placing configuration.
 
 use nalgebra::Point3;
+use planar::Pose2;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
-use ur5e_kin::{BasePose, ObstacleBox, PlaceConfig, PlaceFailure};
+use ur5e_kin::{ObstacleBox, PlaceConfig, PlaceFailure};
 use world::generate::mix_seed;
 use world::view::{CROP_COLS, CROP_ROWS, Heatmap, Side, cell_center_world, in_candidate_area};
 use world::{RobotConfig, Scene, base_collides};
@@ -68,7 +69,7 @@ impl From<PlaceFailure> for TrialResult {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct TrialOutcome {
     /// Where the base really stood (goal + N(0, sigma^2 I), facing the table).
-    pub realised: BasePose,
+    pub realised: Pose2,
     /// How it ended.
     pub result: TrialResult,
 }
@@ -80,7 +81,7 @@ pub trait ArmModel: Sync {
     fn place(
         &self,
         place: &PlaceConfig,
-        base: BasePose,
+        base: Pose2,
         goal: Point3<f64>,
         obstacles: &[ObstacleBox],
     ) -> Result<(), PlaceFailure>;
@@ -94,7 +95,7 @@ impl ArmModel for Ur5eArm {
     fn place(
         &self,
         place: &PlaceConfig,
-        base: BasePose,
+        base: Pose2,
         goal: Point3<f64>,
         obstacles: &[ObstacleBox],
     ) -> Result<(), PlaceFailure> {
@@ -140,7 +141,7 @@ impl<'a, A: ArmModel> TrialSimulator<'a, A> {
         let sigma = self.robot.nav_noise_sigma_m;
         let dx: f64 = StandardNormal.sample(rng);
         let dy: f64 = StandardNormal.sample(rng);
-        let realised = BasePose {
+        let realised = Pose2 {
             x_m: commanded_xy.0 + sigma * dx,
             y_m: commanded_xy.1 + sigma * dy,
             yaw_rad: side.facing_yaw_rad(),
@@ -151,7 +152,7 @@ impl<'a, A: ArmModel> TrialSimulator<'a, A> {
 
     /// The deterministic part of a trial: does the base collide at `base`, and can the arm place
     /// the object from there?
-    pub fn evaluate(&mut self, target: [f64; 3], base: BasePose) -> TrialResult {
+    pub fn evaluate(&mut self, target: [f64; 3], base: Pose2) -> TrialResult {
         if base_collides(self.scene, self.robot, base) {
             return TrialResult::BaseCollision;
         }

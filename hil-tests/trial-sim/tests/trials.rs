@@ -2,13 +2,14 @@
 //! noise has the configured spread, seeds determine everything.
 
 use nalgebra::Point3;
+use planar::Pose2;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use trial_sim::{
     ArmModel, HeatmapArea, TrialResult, TrialSimulator, ground_truth_heatmap,
     ground_truth_heatmap_in, run_trial, simulate_cells, task_feasibility,
 };
-use ur5e_kin::{BasePose, ObstacleBox, PlaceConfig, PlaceFailure};
+use ur5e_kin::{ObstacleBox, PlaceConfig, PlaceFailure};
 use world::scene::{Chair, Scene, UnloadTarget};
 use world::view::{CROP_COLS, CROP_ROWS, Side, cell_center_world, in_candidate_area};
 use world::{Heatmap, RobotConfig};
@@ -108,7 +109,7 @@ fn labels_are_zero_beyond_reach_and_at_the_table() {
         let (x, y) = cell_center_world(1.0, Side::Near, row, 32);
         let result = sim.evaluate(
             scene.targets[0].as_array(),
-            BasePose {
+            Pose2 {
                 x_m: x,
                 y_m: y,
                 yaw_rad: Side::Near.facing_yaw_rad(),
@@ -197,7 +198,7 @@ impl ArmModel for RefusingArm {
     fn place(
         &self,
         _: &PlaceConfig,
-        base: BasePose,
+        base: Pose2,
         goal: Point3<f64>,
         obstacles: &[ObstacleBox],
     ) -> Result<(), PlaceFailure> {

@@ -13,7 +13,8 @@
 //! free turn, the longest free line.
 
 use grop_ipc::{TaskStep, TaskStepKind};
-use world::{BasePose, RobotConfig, Scene};
+use planar::Pose2;
+use world::{RobotConfig, Scene};
 
 /// Docking / back-out distances tried, longest first, m: the base turns at the pre-goal this
 /// far behind a table goal, then drives straight in.
@@ -217,7 +218,7 @@ impl Docking {
         !world::base_collides(
             &self.scene,
             robot,
-            BasePose {
+            Pose2 {
                 x_m: x - c * d,
                 y_m: y - s * d,
                 yaw_rad: heading,

@@ -8,60 +8,7 @@
 //! follower's input smooth. A table-relative fix (a table-edge detector, centimetre-precise,
 //! valid only at the table) replaces the estimate outright and is what the arm plans with.
 
-/// A planar pose, world frame: x, y (m), yaw (rad).
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
-pub struct PlanarPose {
-    /// x, m.
-    pub x_m: f64,
-    /// y, m.
-    pub y_m: f64,
-    /// Heading, rad.
-    pub yaw_rad: f64,
-}
-
-impl PlanarPose {
-    /// A pose.
-    pub const fn new(x_m: f64, y_m: f64, yaw_rad: f64) -> Self {
-        Self { x_m, y_m, yaw_rad }
-    }
-
-    /// `self` followed by `local` (a pose expressed in `self`'s frame).
-    pub fn compose(&self, local: &PlanarPose) -> PlanarPose {
-        let (s, c) = self.yaw_rad.sin_cos();
-        PlanarPose {
-            x_m: self.x_m + c * local.x_m - s * local.y_m,
-            y_m: self.y_m + s * local.x_m + c * local.y_m,
-            yaw_rad: wrap(self.yaw_rad + local.yaw_rad),
-        }
-    }
-
-    /// The inverse transform.
-    pub fn inverse(&self) -> PlanarPose {
-        let (s, c) = self.yaw_rad.sin_cos();
-        PlanarPose {
-            x_m: -(c * self.x_m + s * self.y_m),
-            y_m: -(-s * self.x_m + c * self.y_m),
-            yaw_rad: wrap(-self.yaw_rad),
-        }
-    }
-
-    /// Distance between positions, m.
-    pub fn distance_m(&self, other: &PlanarPose) -> f64 {
-        (self.x_m - other.x_m).hypot(self.y_m - other.y_m)
-    }
-
-    /// Whether every number is finite.
-    pub fn is_finite(&self) -> bool {
-        self.x_m.is_finite() && self.y_m.is_finite() && self.yaw_rad.is_finite()
-    }
-}
-
-/// Wraps an angle to (-pi, pi].
-pub fn wrap(rad: f64) -> f64 {
-    use std::f64::consts::{PI, TAU};
-    let a = (rad + PI).rem_euclid(TAU) - PI;
-    if a <= -PI { a + TAU } else { a }
-}
+use planar::{Pose2, wrap_angle};
 
 /// Settings of the filter.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -104,12 +51,12 @@ pub enum FixOutcome {
 pub struct Localiser {
     config: LocaliserConfig,
     /// Map pose of the odometry frame's origin.
-    map_from_odom: PlanarPose,
-    odom: PlanarPose,
+    map_from_odom: Pose2,
+    odom: Pose2,
     initialised: bool,
     last_global_ns: Option<u64>,
-    table_fix: Option<(PlanarPose, u64)>,
-    odom_at_table_fix: PlanarPose,
+    table_fix: Option<(Pose2, u64)>,
+    odom_at_table_fix: Pose2,
     last_aligned_ns: Option<u64>,
 }
 
@@ -121,25 +68,25 @@ impl Localiser {
     pub fn new(config: LocaliserConfig) -> Self {
         Self {
             config,
-            map_from_odom: PlanarPose::default(),
-            odom: PlanarPose::default(),
+            map_from_odom: Pose2::default(),
+            odom: Pose2::default(),
             initialised: false,
             last_global_ns: None,
             table_fix: None,
-            odom_at_table_fix: PlanarPose::default(),
+            odom_at_table_fix: Pose2::default(),
             last_aligned_ns: None,
         }
     }
 
     /// New odometry pose (the driver's dead reckoning, its own frame).
-    pub fn on_odometry(&mut self, odom: PlanarPose) {
+    pub fn on_odometry(&mut self, odom: Pose2) {
         if odom.is_finite() {
             self.odom = odom;
         }
     }
 
     /// A global fix measured at `stamp_ns`.
-    pub fn on_global_fix(&mut self, fix: PlanarPose, stamp_ns: u64) -> FixOutcome {
+    pub fn on_global_fix(&mut self, fix: Pose2, stamp_ns: u64) -> FixOutcome {
         if !fix.is_finite() || self.last_global_ns.is_some_and(|t| stamp_ns < t) {
             return FixOutcome::Rejected;
         }
@@ -163,10 +110,10 @@ impl Localiser {
         }
         let g = self.config.fix_gain.clamp(0.0, 1.0);
         // Blend the estimate towards the fix, then express it as a correction again.
-        let blended = PlanarPose {
+        let blended = Pose2 {
             x_m: estimate.x_m + g * (fix.x_m - estimate.x_m),
             y_m: estimate.y_m + g * (fix.y_m - estimate.y_m),
-            yaw_rad: wrap(estimate.yaw_rad + g * wrap(fix.yaw_rad - estimate.yaw_rad)),
+            yaw_rad: wrap_angle(estimate.yaw_rad + g * wrap_angle(fix.yaw_rad - estimate.yaw_rad)),
         };
         self.map_from_odom = blended.compose(&self.odom.inverse());
         FixOutcome::Blended
@@ -177,7 +124,7 @@ impl Localiser {
     /// fooled by moved furniture; two agreeing scans make it whole). While alignments arrive
     /// (within [`ALIGNED_FOR_NS`]), global fixes keep the estimate fresh but no longer move it:
     /// their per-leg bias is what the alignment removes.
-    pub fn on_aligned(&mut self, pose: PlanarPose, odom: PlanarPose, stamp_ns: u64) -> FixOutcome {
+    pub fn on_aligned(&mut self, pose: Pose2, odom: Pose2, stamp_ns: u64) -> FixOutcome {
         if !pose.is_finite() || !odom.is_finite() || !self.initialised {
             return FixOutcome::Rejected;
         }
@@ -185,10 +132,12 @@ impl Localiser {
         let now_estimate = self.estimate();
         let target = wanted.compose(&self.odom);
         let g = 0.5;
-        let blended = PlanarPose {
+        let blended = Pose2 {
             x_m: now_estimate.x_m + g * (target.x_m - now_estimate.x_m),
             y_m: now_estimate.y_m + g * (target.y_m - now_estimate.y_m),
-            yaw_rad: wrap(now_estimate.yaw_rad + g * wrap(target.yaw_rad - now_estimate.yaw_rad)),
+            yaw_rad: wrap_angle(
+                now_estimate.yaw_rad + g * wrap_angle(target.yaw_rad - now_estimate.yaw_rad),
+            ),
         };
         self.map_from_odom = blended.compose(&self.odom.inverse());
         self.last_aligned_ns = Some(stamp_ns);
@@ -203,7 +152,7 @@ impl Localiser {
 
     /// A table-relative fix (already in the world frame): taken whole, and kept as the arm's
     /// pose until the base moves.
-    pub fn on_table_fix(&mut self, fix: PlanarPose, stamp_ns: u64) -> FixOutcome {
+    pub fn on_table_fix(&mut self, fix: Pose2, stamp_ns: u64) -> FixOutcome {
         if !fix.is_finite() {
             return FixOutcome::Rejected;
         }
@@ -221,15 +170,15 @@ impl Localiser {
 
     /// The table-relative pose, if one was measured after `since_ns` and the base has not
     /// moved (by odometry, 5 mm / 0.01 rad) since.
-    pub fn table_pose(&self, since_ns: u64) -> Option<PlanarPose> {
+    pub fn table_pose(&self, since_ns: u64) -> Option<Pose2> {
         let (pose, stamp) = self.table_fix?;
         let moved = self.odom.distance_m(&self.odom_at_table_fix) > 0.005
-            || wrap(self.odom.yaw_rad - self.odom_at_table_fix.yaw_rad).abs() > 0.01;
+            || wrap_angle(self.odom.yaw_rad - self.odom_at_table_fix.yaw_rad).abs() > 0.01;
         (stamp >= since_ns && !moved).then_some(pose)
     }
 
     /// The pose estimate in the map.
-    pub fn estimate(&self) -> PlanarPose {
+    pub fn estimate(&self) -> Pose2 {
         self.map_from_odom.compose(&self.odom)
     }
 
@@ -251,35 +200,35 @@ impl Localiser {
 mod tests {
     use super::*;
 
-    fn close(a: PlanarPose, b: PlanarPose, tol: f64) -> bool {
-        a.distance_m(&b) < tol && wrap(a.yaw_rad - b.yaw_rad).abs() < tol
+    fn close(a: Pose2, b: Pose2, tol: f64) -> bool {
+        a.distance_m(&b) < tol && wrap_angle(a.yaw_rad - b.yaw_rad).abs() < tol
     }
 
     #[test]
     fn compose_and_inverse_round_trip() {
-        let a = PlanarPose::new(1.0, -2.0, 0.7);
-        let b = PlanarPose::new(0.3, 0.4, -1.2);
+        let a = Pose2::new(1.0, -2.0, 0.7);
+        let b = Pose2::new(0.3, 0.4, -1.2);
         let ab = a.compose(&b);
         assert!(close(a.inverse().compose(&ab), b, 1e-9));
-        assert!(close(a.compose(&a.inverse()), PlanarPose::default(), 1e-9));
+        assert!(close(a.compose(&a.inverse()), Pose2::default(), 1e-9));
     }
 
     #[test]
     fn first_fix_places_the_odometry_frame_then_odometry_moves_the_estimate() {
         let mut loc = Localiser::new(LocaliserConfig::default());
         assert!(loc.is_stale(0));
-        loc.on_odometry(PlanarPose::new(5.0, 5.0, 0.0));
-        loc.on_global_fix(PlanarPose::new(1.0, 2.0, std::f64::consts::FRAC_PI_2), 10);
+        loc.on_odometry(Pose2::new(5.0, 5.0, 0.0));
+        loc.on_global_fix(Pose2::new(1.0, 2.0, std::f64::consts::FRAC_PI_2), 10);
         assert!(close(
             loc.estimate(),
-            PlanarPose::new(1.0, 2.0, std::f64::consts::FRAC_PI_2),
+            Pose2::new(1.0, 2.0, std::f64::consts::FRAC_PI_2),
             1e-9
         ));
         // One metre forward in odometry = one metre along +y in the map.
-        loc.on_odometry(PlanarPose::new(6.0, 5.0, 0.0));
+        loc.on_odometry(Pose2::new(6.0, 5.0, 0.0));
         assert!(close(
             loc.estimate(),
-            PlanarPose::new(1.0, 3.0, std::f64::consts::FRAC_PI_2),
+            Pose2::new(1.0, 3.0, std::f64::consts::FRAC_PI_2),
             1e-9
         ));
         assert!(!loc.is_stale(10 + 500_000_000));
@@ -289,32 +238,32 @@ mod tests {
     #[test]
     fn repeated_fixes_converge_and_jumps_are_taken_whole() {
         let mut loc = Localiser::new(LocaliserConfig::default());
-        loc.on_global_fix(PlanarPose::new(0.0, 0.0, 0.0), 1);
-        let truth = PlanarPose::new(0.2, -0.1, 0.05);
+        loc.on_global_fix(Pose2::new(0.0, 0.0, 0.0), 1);
+        let truth = Pose2::new(0.2, -0.1, 0.05);
         for k in 0..40 {
             assert_ne!(loc.on_global_fix(truth, 2 + k), FixOutcome::Rejected);
         }
         assert!(close(loc.estimate(), truth, 1e-5));
-        let far = PlanarPose::new(3.0, 0.0, 0.0);
+        let far = Pose2::new(3.0, 0.0, 0.0);
         assert!(matches!(
             loc.on_global_fix(far, 100),
             FixOutcome::Jumped { .. }
         ));
         assert!(close(loc.estimate(), far, 1e-9));
         assert_eq!(loc.on_global_fix(far, 50), FixOutcome::Rejected, "older");
-        let nan = PlanarPose::new(f64::NAN, 0.0, 0.0);
+        let nan = Pose2::new(f64::NAN, 0.0, 0.0);
         assert_eq!(loc.on_global_fix(nan, 200), FixOutcome::Rejected);
     }
 
     #[test]
     fn table_pose_is_valid_until_the_base_moves() {
         let mut loc = Localiser::new(LocaliserConfig::default());
-        loc.on_global_fix(PlanarPose::new(1.0, 5.0, 1.57), 1);
-        let fix = PlanarPose::new(1.02, 5.01, 1.56);
+        loc.on_global_fix(Pose2::new(1.0, 5.0, 1.57), 1);
+        let fix = Pose2::new(1.02, 5.01, 1.56);
         loc.on_table_fix(fix, 100);
         assert_eq!(loc.table_pose(50), Some(fix));
         assert_eq!(loc.table_pose(150), None, "older than asked");
-        loc.on_odometry(PlanarPose::new(0.02, 0.0, 0.0));
+        loc.on_odometry(Pose2::new(0.02, 0.0, 0.0));
         assert_eq!(loc.table_pose(50), None, "moved");
     }
 }

@@ -4,9 +4,10 @@
 //! RRT-Connect with shortcutting), at the base pose the robot stands on.
 
 use nalgebra::Point3;
+use planar::Pose2;
 use ur5e_kin::{JointPathError, Joints, PlaceFailure, plan_joint_path, plan_place};
 use world::generate::mix_seed;
-use world::{BasePose, RobotConfig, Scene};
+use world::{RobotConfig, Scene};
 
 use crate::methods::PlannedTask;
 use crate::problem::TaskProblem;
@@ -28,7 +29,7 @@ pub struct UnloadMotion {
     /// The object.
     pub object: usize,
     /// Where the base stands.
-    pub base: BasePose,
+    pub base: Pose2,
     /// Placing configuration (rad).
     pub place_joints: Joints,
     /// Joint path from the carry pose to `place_joints`, both included.
@@ -62,7 +63,7 @@ pub fn plan_unload_motion(
     scene: &Scene,
     robot: &RobotConfig,
     object: usize,
-    base: BasePose,
+    base: Pose2,
     target: [f64; 3],
     start: &Joints,
     seed: u64,
@@ -98,7 +99,7 @@ pub fn arm_trajectories(
         .enumerate()
         .map(|(k, step)| {
             let goal = planned.goal_of(step);
-            let base = BasePose {
+            let base = Pose2 {
                 x_m: goal.xy.0,
                 y_m: goal.xy.1,
                 yaw_rad: goal.yaw_rad,

@@ -1,16 +1,17 @@
 //! Arm trajectories for a chosen plan, on the real UR5e model in an empty paper room.
 
+use planar::Pose2;
 use planner::arm::{ArmPlanError, CARRY_JOINTS, arm_trajectories, plan_unload_motion};
 use planner::costs::StraightLine;
 use planner::methods::{MethodKind, Planner, PlannerConfig, TaskMotionPlanner};
 use planner::problem::{TaskProblem, candidate_cells};
-use world::{BasePose, Heatmap, RobotConfig, Scene, Side};
+use world::{Heatmap, RobotConfig, Scene, Side};
 
 #[test]
 fn reachable_goal_gets_a_path_from_the_carry_pose() {
     let scene = Scene::empty_paper_room();
     let robot = RobotConfig::default();
-    let base = BasePose {
+    let base = Pose2 {
         x_m: 0.0,
         y_m: 6.0 - 0.7,
         yaw_rad: Side::Near.facing_yaw_rad(),
@@ -28,7 +29,7 @@ fn reachable_goal_gets_a_path_from_the_carry_pose() {
 fn far_goal_is_reported_not_panicked() {
     let scene = Scene::empty_paper_room();
     let robot = RobotConfig::default();
-    let base = BasePose {
+    let base = Pose2 {
         x_m: 0.0,
         y_m: 3.0,
         yaw_rad: Side::Near.facing_yaw_rad(),

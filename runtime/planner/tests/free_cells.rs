@@ -15,7 +15,7 @@ fn reference_free(l: &UnloadLocation, scene: &Scene, robot: &RobotConfig) -> Vec
             !world::base_collides(
                 scene,
                 robot,
-                world::BasePose {
+                planar::Pose2 {
                     x_m: c.xy.0,
                     y_m: c.xy.1,
                     yaw_rad: l.side.facing_yaw_rad(),

@@ -6,8 +6,9 @@ use std::hint::black_box;
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use nalgebra::{Isometry3, Point3};
+use planar::Pose2;
 use ur5e_kin::bench_scene::dinner_table_queries;
-use ur5e_kin::{BasePose, ObstacleBox, PlaceConfig, Ur5e, plan_place};
+use ur5e_kin::{ObstacleBox, PlaceConfig, Ur5e, plan_place};
 
 fn bench(c: &mut Criterion) {
     let cfg = PlaceConfig::default();
@@ -30,7 +31,7 @@ fn bench(c: &mut Criterion) {
     )];
     let goal = Point3::new(0.0, 6.0, 1.3);
     for (name, offset) in [("reachable_0.7m", 0.7), ("out_of_reach_1.2m", 1.2)] {
-        let base = BasePose {
+        let base = Pose2 {
             x_m: 0.0,
             y_m: 6.0 - offset,
             yaw_rad: FRAC_PI_2,

@@ -4,13 +4,14 @@
 //! `cargo run --release -p ur5e-kin --example reach`
 
 use core::f64::consts::FRAC_PI_2;
+use planar::Pose2;
 
 use nalgebra::Point3;
-use ur5e_kin::{BasePose, PlaceConfig, plan_place};
+use ur5e_kin::{PlaceConfig, plan_place};
 
 /// Farthest reachable goal straight ahead of the arm base axis, scanned at 1 mm [m].
 fn reach_m(cfg: &PlaceConfig, z_m: f64) -> Option<f64> {
-    let base = BasePose {
+    let base = Pose2 {
         x_m: 0.0,
         y_m: 0.0,
         yaw_rad: FRAC_PI_2,

@@ -4,17 +4,18 @@
 //! Not part of the planning API.
 
 use core::f64::consts::{FRAC_PI_2, PI};
+use planar::Pose2;
 
 use nalgebra::{Point3, Vector3};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-use crate::{BasePose, ObstacleBox, PlaceConfig};
+use crate::{ObstacleBox, PlaceConfig};
 
 /// One placement query: base pose, object goal, obstacles (world frame).
 pub struct PlaceQuery {
     /// Realised base pose.
-    pub base: BasePose,
+    pub base: Pose2,
     /// Object goal.
     pub goal: Point3<f64>,
     /// Table, chairs and the base body.
@@ -61,7 +62,7 @@ pub fn dinner_table_queries(
                 let cx = target_x - 2.0 + (col as f64 + 0.5) * 0.0625;
                 let cy = 6.0 - (row as f64 + 0.5) * 0.0625;
                 for _ in 0..trials_per_cell {
-                    let base = BasePose {
+                    let base = Pose2 {
                         x_m: cx + 0.1 * normal(&mut rng),
                         y_m: cy + 0.1 * normal(&mut rng),
                         yaw_rad: FRAC_PI_2,

@@ -6,6 +6,7 @@
 //! copied in `shared/reference/ur5e.md` section 5.1.
 
 use core::f64::consts::{PI, TAU};
+use planar::wrap_angle;
 
 use nalgebra::{Isometry3, Matrix3, Point3, Rotation3, Translation3, UnitQuaternion, Vector3};
 use serde::{Deserialize, Serialize};
@@ -54,7 +55,7 @@ impl JointLimits {
     /// The representative of angle `q_rad` (modulo 2 pi) that lies within the limits of joint
     /// `joint`, preferring the one nearest zero; `None` if no representative fits.
     fn fit(&self, joint: usize, q_rad: f64) -> Option<f64> {
-        let wrapped = wrap_to_pi(q_rad);
+        let wrapped = wrap_angle(q_rad);
         let (lo, hi) = (self.lower_rad[joint], self.upper_rad[joint]);
         // Nearest zero first: the wrapped value, then one turn either way.
         let alternatives = if wrapped >= 0.0 {
@@ -64,15 +65,6 @@ impl JointLimits {
         };
         alternatives.into_iter().find(|q| *q >= lo && *q <= hi)
     }
-}
-
-/// Wraps an angle into (-pi, pi].
-pub fn wrap_to_pi(angle_rad: f64) -> f64 {
-    let mut a = angle_rad.rem_euclid(TAU);
-    if a > PI {
-        a -= TAU;
-    }
-    a
 }
 
 /// A UR5e: DH parameters and joint limits.
@@ -277,7 +269,7 @@ impl Ur5e {
                     let q2 = y.atan2(x) - (a3 * s3).atan2(a2 + a3 * c3);
                     let q4 = q234 - q2 - q3;
                     visited += 1;
-                    let q = [q1, q2, q3, q4, q5, q6].map(wrap_to_pi);
+                    let q = [q1, q2, q3, q4, q5, q6].map(wrap_angle);
                     if !visit(q) {
                         return visited;
                     }
@@ -350,12 +342,5 @@ mod tests {
         assert!(frames.flange().rotation.angle_to(&fk.rotation) < 1e-9);
         // Joint 2 sits d1 above the base on the base axis whatever q1 is.
         assert!((frames.origin(1) - Point3::new(0.0, 0.0, 0.1625)).norm() < 1e-12);
-    }
-
-    #[test]
-    fn wrap_to_pi_is_half_open() {
-        assert!((wrap_to_pi(PI) - PI).abs() < 1e-12);
-        assert!((wrap_to_pi(-PI) - PI).abs() < 1e-12);
-        assert!((wrap_to_pi(3.0 * TAU + 0.5) - 0.5).abs() < 1e-9);
     }
 }

@@ -1,13 +1,14 @@
 //! Joint-space motion planning for the arm: RRT-Connect (Kuffner and LaValle, ICRA 2000) with
 //! collision-checked edges, then random shortcutting. Deterministic for a seed.
 
+use planar::Pose2;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 use crate::collision::ObstacleBox;
 use crate::kinematics::Joints;
 pub use crate::place::JointPathSettings;
-use crate::place::{ArmScene, BasePose, PlaceConfig};
+use crate::place::{ArmScene, PlaceConfig};
 
 /// Why no joint path was found.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, thiserror::Error)]
@@ -132,7 +133,7 @@ fn branch(tree: &[Node], mut i: usize) -> Vec<Joints> {
 /// that were checked every `cfg.path.edge_resolution_rad`. The same seed gives the same path.
 pub fn plan_joint_path(
     cfg: &PlaceConfig,
-    base: BasePose,
+    base: Pose2,
     start: &Joints,
     goal: &Joints,
     obstacles: &[ObstacleBox],

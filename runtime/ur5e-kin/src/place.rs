@@ -5,6 +5,7 @@
 use core::f64::consts::{PI, TAU};
 
 use nalgebra::{Isometry3, Matrix3, Point3, Translation3, UnitQuaternion, Vector3};
+use planar::Pose2;
 use serde::{Deserialize, Serialize};
 
 use crate::collision::{ArmCollisionModel, ObstacleBox, capsules_collide};
@@ -50,26 +51,13 @@ impl ArmMount {
     }
 }
 
-/// A mobile base pose on the floor of the world frame.
-#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct BasePose {
-    /// Base centre x in the world [m].
-    pub x_m: f64,
-    /// Base centre y in the world [m].
-    pub y_m: f64,
-    /// Heading about the world z axis, 0 = facing +x [rad].
-    pub yaw_rad: f64,
-}
-
-impl BasePose {
-    /// The mobile base frame in the world frame.
-    pub fn world_from_base(&self) -> Isometry3<f64> {
-        Isometry3::from_parts(
-            Translation3::new(self.x_m, self.y_m, 0.0),
-            UnitQuaternion::from_axis_angle(&Vector3::z_axis(), self.yaw_rad),
-        )
-    }
+/// The mobile base frame (origin at the base centre on the floor, x forward, z up) in the world
+/// frame, for a base at `base`.
+pub fn world_from_base(base: &Pose2) -> Isometry3<f64> {
+    Isometry3::from_parts(
+        Translation3::new(base.x_m, base.y_m, 0.0),
+        UnitQuaternion::from_axis_angle(&Vector3::z_axis(), base.yaw_rad),
+    )
 }
 
 /// Settings of [`crate::path::plan_joint_path`] (part of [`PlaceConfig`]: the joint paths of a
@@ -280,8 +268,8 @@ pub(crate) struct ArmScene<'a> {
 }
 
 impl<'a> ArmScene<'a> {
-    pub fn new(cfg: &PlaceConfig, base: BasePose, obstacles: &'a [ObstacleBox]) -> Self {
-        let world_from_arm = base.world_from_base() * cfg.mount.base_from_arm();
+    pub fn new(cfg: &PlaceConfig, base: Pose2, obstacles: &'a [ObstacleBox]) -> Self {
+        let world_from_arm = world_from_base(&base) * cfg.mount.base_from_arm();
         let shoulder = world_from_arm.transform_point(&Point3::new(0.0, 0.0, cfg.arm.d_m[0]));
         let reach = max_link_reach_m(cfg);
         let mut near = heapless::Vec::new();
@@ -325,12 +313,7 @@ impl<'a> ArmScene<'a> {
 
 /// Whether the arm at joints `q`, on the mobile base at `base`, touches any of `obstacles` (world
 /// frame) or the floor. The shoulder link is not checked (it stands on the mount).
-pub fn arm_collides(
-    cfg: &PlaceConfig,
-    base: BasePose,
-    q: &Joints,
-    obstacles: &[ObstacleBox],
-) -> bool {
+pub fn arm_collides(cfg: &PlaceConfig, base: Pose2, q: &Joints, obstacles: &[ObstacleBox]) -> bool {
     ArmScene::new(cfg, base, obstacles).collides(cfg, q)
 }
 
@@ -339,11 +322,11 @@ pub fn arm_collides(
 /// furniture ([`arm_collides`] also refuses self-colliding configurations, as a planner must).
 pub fn arm_touches_obstacles(
     cfg: &PlaceConfig,
-    base: BasePose,
+    base: Pose2,
     q: &Joints,
     obstacles: &[ObstacleBox],
 ) -> bool {
-    let world_from_arm = base.world_from_base() * cfg.mount.base_from_arm();
+    let world_from_arm = world_from_base(&base) * cfg.mount.base_from_arm();
     let caps = cfg
         .collision
         .capsules(&cfg.arm, &world_from_arm, q, cfg.tcp_offset_m);
@@ -421,7 +404,7 @@ fn frame_with_z(z: &Vector3<f64>) -> Matrix3<f64> {
 /// Errors: the most progressed failure over all tried tool axes ([`PlaceFailure`]).
 pub fn plan_place(
     cfg: &PlaceConfig,
-    base: BasePose,
+    base: Pose2,
     goal: Point3<f64>,
     obstacles: &[ObstacleBox],
 ) -> Result<PlacePlan, PlaceFailure> {
@@ -436,7 +419,7 @@ pub fn plan_place(
         return Err(PlaceFailure::OutOfReach);
     }
     let arm = &cfg.arm;
-    let world_from_arm = base.world_from_base() * cfg.mount.base_from_arm();
+    let world_from_arm = world_from_base(&base) * cfg.mount.base_from_arm();
     let goal_arm = world_from_arm.inverse_transform_point(&goal).coords;
     // Tool axis directions are expressed in the arm base frame; the mount only yaws, so
     // "down" is -z there too.

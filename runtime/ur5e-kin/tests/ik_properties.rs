@@ -3,8 +3,9 @@
 use core::f64::consts::{FRAC_PI_2, PI};
 
 use nalgebra::{Isometry3, Rotation3, Translation3, UnitQuaternion, Vector3};
+use planar::wrap_angle;
 use proptest::prelude::*;
-use ur5e_kin::{Joints, Ur5e, wrap_to_pi};
+use ur5e_kin::{Joints, Ur5e};
 
 fn pose_error(a: &Isometry3<f64>, b: &Isometry3<f64>) -> (f64, f64) {
     (
@@ -14,7 +15,7 @@ fn pose_error(a: &Isometry3<f64>, b: &Isometry3<f64>) -> (f64, f64) {
 }
 
 fn same_angles(a: &Joints, b: &Joints, tol: f64) -> bool {
-    a.iter().zip(b).all(|(x, y)| wrap_to_pi(x - y).abs() < tol)
+    a.iter().zip(b).all(|(x, y)| wrap_angle(x - y).abs() < tol)
 }
 
 /// Joint values away from the wrist singularity (|sin q5| small) where q6 is not unique.

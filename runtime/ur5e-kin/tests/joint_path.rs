@@ -2,13 +2,13 @@
 #![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failure panics with its message
 
 use nalgebra::{Point3, Vector3};
+use planar::Pose2;
 use ur5e_kin::{
-    BasePose, JointPathError, Joints, ObstacleBox, PlaceConfig, arm_collides, plan_joint_path,
-    plan_place,
+    JointPathError, Joints, ObstacleBox, PlaceConfig, arm_collides, plan_joint_path, plan_place,
 };
 
-fn base() -> BasePose {
-    BasePose {
+fn base() -> Pose2 {
+    Pose2 {
         x_m: 0.0,
         y_m: 0.0,
         yaw_rad: 0.0,
@@ -147,7 +147,7 @@ fn from_upright_carry_pose_to_a_table_placement() {
     let carry: Joints = [0.0, -FRAC_PI_2, 0.0, -FRAC_PI_2, 0.0, 0.0];
     let cfg = PlaceConfig::default();
     for (offset, dx) in [(0.6, 0.0), (0.8, 0.3), (0.9, -0.2)] {
-        let base = BasePose {
+        let base = Pose2 {
             x_m: dx,
             y_m: 6.0 - offset,
             yaw_rad: FRAC_PI_2,

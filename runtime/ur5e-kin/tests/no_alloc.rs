@@ -1,9 +1,10 @@
 //! `plan_place` and IK allocate nothing: a counting global allocator around the calls.
 
 use core::f64::consts::FRAC_PI_2;
+use planar::Pose2;
 
 use nalgebra::{Point3, Vector3};
-use ur5e_kin::{BasePose, ObstacleBox, PlaceConfig, Ur5e, arm_collides, plan_place};
+use ur5e_kin::{ObstacleBox, PlaceConfig, Ur5e, arm_collides, plan_place};
 
 #[global_allocator]
 static GLOBAL: test_support::CountingAlloc = test_support::CountingAlloc;
@@ -21,9 +22,9 @@ fn placement_and_ik_do_not_allocate() {
         },
     ];
     let goal = Point3::new(0.0, 6.0, 1.3);
-    let poses: Vec<BasePose> = [0.5, 0.7, 0.9, 1.1, 1.3]
+    let poses: Vec<Pose2> = [0.5, 0.7, 0.9, 1.1, 1.3]
         .iter()
-        .map(|off| BasePose {
+        .map(|off| Pose2 {
             x_m: 0.1,
             y_m: 6.0 - off,
             yaw_rad: FRAC_PI_2,

@@ -2,10 +2,11 @@
 #![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failure panics with its message
 
 use core::f64::consts::{FRAC_PI_2, PI};
+use planar::Pose2;
 
 use nalgebra::{Point3, Vector3};
 use proptest::prelude::*;
-use ur5e_kin::{BasePose, ObstacleBox, PlaceConfig, PlaceFailure, arm_collides, plan_place};
+use ur5e_kin::{ObstacleBox, PlaceConfig, PlaceFailure, arm_collides, plan_place};
 
 /// The dinner-table world of docs/architecture.md around x = 0: table centre line y = 6,
 /// 0.4 m deep, top at 1.0 m; the object goal 1.3 m high on the centre line.
@@ -18,7 +19,7 @@ fn goal() -> Point3<f64> {
 }
 
 /// The mobile base body as the world crate gives it: 0.60 x 0.55 m, up to the mount height.
-fn base_body(cfg: &PlaceConfig, base: BasePose) -> ObstacleBox {
+fn base_body(cfg: &PlaceConfig, base: Pose2) -> ObstacleBox {
     ObstacleBox {
         center: Point3::new(base.x_m, base.y_m, 0.5 * cfg.mount.height_m),
         half_extents: Vector3::new(0.30, 0.275, 0.5 * cfg.mount.height_m),
@@ -26,8 +27,8 @@ fn base_body(cfg: &PlaceConfig, base: BasePose) -> ObstacleBox {
     }
 }
 
-fn near_base(offset_m: f64) -> BasePose {
-    BasePose {
+fn near_base(offset_m: f64) -> Pose2 {
+    Pose2 {
         x_m: 0.0,
         y_m: 6.0 - offset_m,
         yaw_rad: FRAC_PI_2,
@@ -36,7 +37,7 @@ fn near_base(offset_m: f64) -> BasePose {
 
 /// Checks a plan: the object (TCP) is at the goal, the tool within the tolerance of down, the
 /// joints within limits, and the arm clear of the obstacles.
-fn assert_valid(cfg: &PlaceConfig, base: BasePose, goal: Point3<f64>, obstacles: &[ObstacleBox]) {
+fn assert_valid(cfg: &PlaceConfig, base: Pose2, goal: Point3<f64>, obstacles: &[ObstacleBox]) {
     let plan = plan_place(cfg, base, goal, obstacles).expect("placement");
     let tcp = plan
         .flange_world
@@ -81,7 +82,7 @@ fn far_part_of_the_band_is_out_of_reach() {
         Err(PlaceFailure::OutOfReach)
     );
     // Sideways along the table at the near row: reach is horizontal distance from the arm axis.
-    let base = BasePose {
+    let base = Pose2 {
         x_m: 0.9,
         ..near_base(0.56)
     }; // 0.97 m from the arm axis
@@ -94,7 +95,7 @@ fn far_part_of_the_band_is_out_of_reach() {
 #[test]
 fn far_side_is_symmetric() {
     let cfg = PlaceConfig::default();
-    let base = BasePose {
+    let base = Pose2 {
         x_m: 0.2,
         y_m: 6.7,
         yaw_rad: -FRAC_PI_2,
@@ -181,7 +182,7 @@ fn tilt_extends_reach() {
 #[test]
 fn non_finite_input_fails_without_panic() {
     let cfg = PlaceConfig::default();
-    let base = BasePose {
+    let base = Pose2 {
         x_m: f64::NAN,
         ..near_base(0.7)
     };
@@ -249,7 +250,7 @@ proptest! {
         dx in -0.9..0.9f64, offset in 0.4..1.2f64, theta in -PI..PI,
     ) {
         let cfg = PlaceConfig::default();
-        let base = BasePose { x_m: dx, y_m: 6.0 - offset, yaw_rad: FRAC_PI_2 };
+        let base = Pose2 { x_m: dx, y_m: 6.0 - offset, yaw_rad: FRAC_PI_2 };
         let obstacles = [table(), base_body(&cfg, base)];
         let result = plan_place(&cfg, base, goal(), &obstacles);
         if result.is_ok() {
@@ -264,7 +265,7 @@ proptest! {
             p.z,
         );
         let centre = rot(Point3::new(base.x_m, base.y_m, 0.0));
-        let base_r = BasePose { x_m: centre.x, y_m: centre.y, yaw_rad: base.yaw_rad + theta };
+        let base_r = Pose2 { x_m: centre.x, y_m: centre.y, yaw_rad: base.yaw_rad + theta };
         let obstacles_r: Vec<ObstacleBox> = obstacles
             .iter()
             .map(|o| ObstacleBox { center: rot(o.center), yaw_rad: o.yaw_rad + theta, ..*o })

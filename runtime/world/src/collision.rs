@@ -1,7 +1,8 @@
 //! Base collision against the scene, and the scene as boxes for the arm's collision checks.
 
 use nalgebra::{Point3, Vector3};
-use ur5e_kin::{BasePose, ObstacleBox};
+use planar::Pose2;
+use ur5e_kin::ObstacleBox;
 
 use crate::geometry::{OrientedRect, OverlapProbe};
 use crate::robot::{BaseCollisionModel, RobotConfig};
@@ -20,7 +21,7 @@ const WALL_THICKNESS_M: f64 = 0.1;
 /// [`BaseCollisionModel::ChairDiscs`] (the authors' code) the base is a point instead.
 /// The gap between the base's real footprint at `base` and the nearest table, chair or wall
 /// (m; 0 in contact): what the HIL world reports as the closest call of a mission.
-pub fn base_clearance(scene: &Scene, robot: &RobotConfig, base: BasePose) -> f64 {
+pub fn base_clearance(scene: &Scene, robot: &RobotConfig, base: Pose2) -> f64 {
     let footprint = robot.footprint.at(base.x_m, base.y_m, base.yaw_rad);
     let room = &scene.room;
     let walls = footprint
@@ -46,7 +47,7 @@ pub fn base_clearance(scene: &Scene, robot: &RobotConfig, base: BasePose) -> f64
 }
 
 /// The base's footprint at `base` overlaps a wall, a table or a chair.
-pub fn base_collides(scene: &Scene, robot: &RobotConfig, base: BasePose) -> bool {
+pub fn base_collides(scene: &Scene, robot: &RobotConfig, base: Pose2) -> bool {
     if let BaseCollisionModel::ChairDiscs { radius_m } = robot.base_collision {
         let r2 = radius_m * radius_m;
         return !scene.room.contains(base.x_m, base.y_m)
@@ -114,7 +115,7 @@ impl Scene {
     /// Everything the arm may hit, as world-frame boxes for ur5e-kin: the robot's own base body
     /// (footprint up to `footprint.body_height_m`), the tables (floor to top), chairs (floor to
     /// backrest) and walls, keeping only boxes within [`ARM_RELEVANCE_RADIUS_M`] of the arm base.
-    pub fn obstacle_boxes(&self, robot: &RobotConfig, base: BasePose) -> Vec<ObstacleBox> {
+    pub fn obstacle_boxes(&self, robot: &RobotConfig, base: Pose2) -> Vec<ObstacleBox> {
         let mut boxes = Vec::with_capacity(8);
         self.obstacle_boxes_into(robot, base, &mut boxes);
         boxes
@@ -129,7 +130,7 @@ impl Scene {
     pub fn obstacle_boxes_into(
         &self,
         robot: &RobotConfig,
-        base: BasePose,
+        base: Pose2,
         boxes: &mut Vec<ObstacleBox>,
     ) {
         boxes.clear();
@@ -360,7 +361,7 @@ mod tests {
                             let expected = base_collides(
                                 &scene,
                                 robot,
-                                BasePose {
+                                Pose2 {
                                     x_m: x,
                                     y_m: y,
                                     yaw_rad: yaw,

@@ -233,16 +233,6 @@ pub fn point_segment_distance(p: (f64, f64), a: (f64, f64), b: (f64, f64)) -> f6
     (p.0 - a.0 - t * dx).hypot(p.1 - a.1 - t * dy)
 }
 
-/// Wraps an angle to (-pi, pi].
-pub fn wrap_angle_rad(angle_rad: f64) -> f64 {
-    let wrapped = angle_rad.rem_euclid(std::f64::consts::TAU);
-    if wrapped > std::f64::consts::PI {
-        wrapped - std::f64::consts::TAU
-    } else {
-        wrapped
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -336,12 +326,6 @@ mod tests {
         let (x0, x1, y0, y1) = r.bounds();
         assert!((x0 + 0.5).abs() < 1e-12 && (x1 - 0.5).abs() < 1e-12);
         assert!((y0 + 1.0).abs() < 1e-12 && (y1 - 1.0).abs() < 1e-12);
-    }
-
-    #[test]
-    fn wrap_angle() {
-        assert!((wrap_angle_rad(3.0 * std::f64::consts::PI) - std::f64::consts::PI).abs() < 1e-12);
-        assert!((wrap_angle_rad(-0.5) + 0.5).abs() < 1e-12);
     }
 }
 

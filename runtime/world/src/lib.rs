@@ -36,5 +36,5 @@ pub use collision::{base_clearance, base_collides};
 pub use lidar::{LidarSpec, RayScene};
 pub use robot::{BaseCollisionModel, BaseFootprint, RobotConfig, RobotError};
 pub use scene::{Chair, InvalidField, Scene, SceneError, UnloadTarget};
-pub use ur5e_kin::{ArmMount, BasePose, ObstacleBox, PlaceConfig};
+pub use ur5e_kin::{ArmMount, ObstacleBox, PlaceConfig};
 pub use view::{Heatmap, Side};

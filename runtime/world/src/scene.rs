@@ -7,6 +7,7 @@
 
 use std::path::{Path, PathBuf};
 
+use planar::Pose2;
 use serde::{Deserialize, Serialize};
 
 pub use crate::file::InvalidField;
@@ -194,18 +195,6 @@ pub struct Point2 {
     pub x_m: f64,
     /// World y (m).
     pub y_m: f64,
-}
-
-/// A planar pose (m, rad).
-#[derive(Serialize, Deserialize, Clone, Copy, Debug, PartialEq)]
-#[serde(deny_unknown_fields)]
-pub struct Pose2 {
-    /// World x (m).
-    pub x_m: f64,
-    /// World y (m).
-    pub y_m: f64,
-    /// Heading about +z (rad).
-    pub yaw_rad: f64,
 }
 
 impl Room {

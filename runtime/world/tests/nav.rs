@@ -1,8 +1,9 @@
 //! Occupancy grid and any-angle planning.
 
+use planar::Pose2;
 use world::nav::{NAV_CELL_M, OccupancyGrid};
 use world::scene::{Chair, Scene};
-use world::{BasePose, RobotConfig, base_collides};
+use world::{RobotConfig, base_collides};
 
 #[test]
 fn open_floor_path_is_the_straight_line() {
@@ -61,7 +62,7 @@ fn cells_next_to_furniture_and_walls_are_blocked() {
     assert!(!base_collides(
         &scene,
         &robot,
-        BasePose {
+        Pose2 {
             x_m: 0.0,
             y_m: 5.4,
             yaw_rad: std::f64::consts::FRAC_PI_2
@@ -108,7 +109,7 @@ fn base_collision_follows_the_footprint() {
     assert!(!base_collides(
         &scene,
         &robot,
-        BasePose {
+        Pose2 {
             x_m: 0.0,
             y_m: edge - 0.01,
             yaw_rad: facing
@@ -117,7 +118,7 @@ fn base_collision_follows_the_footprint() {
     assert!(base_collides(
         &scene,
         &robot,
-        BasePose {
+        Pose2 {
             x_m: 0.0,
             y_m: edge + 0.01,
             yaw_rad: facing
@@ -128,7 +129,7 @@ fn base_collision_follows_the_footprint() {
     assert!(!base_collides(
         &scene,
         &robot,
-        BasePose {
+        Pose2 {
             x_m: 0.0,
             y_m: 5.8 - half_width - 0.01,
             yaw_rad: 0.0
@@ -138,7 +139,7 @@ fn base_collision_follows_the_footprint() {
         base_collides(
             &scene,
             &robot,
-            BasePose {
+            Pose2 {
                 x_m: 9.8,
                 y_m: 2.0,
                 yaw_rad: 0.0
@@ -154,7 +155,7 @@ fn obstacle_boxes_hold_the_base_table_and_near_chairs_only() {
     scene.chairs.push(Chair::new(0.6, 5.0, 0.0));
     scene.chairs.push(Chair::new(5.0, 5.0, 0.0));
     let robot = RobotConfig::default();
-    let base = BasePose {
+    let base = Pose2 {
         x_m: 0.0,
         y_m: 5.2,
         yaw_rad: std::f64::consts::FRAC_PI_2,
@@ -181,7 +182,7 @@ fn authors_chair_disc_model_is_a_point_robot() {
     };
     let facing = std::f64::consts::FRAC_PI_2;
     // 0.35 m from the chair centre: clear for a point with a 0.3 m disc, not for the footprint.
-    let pose = BasePose {
+    let pose = Pose2 {
         x_m: 1.35,
         y_m: 4.5,
         yaw_rad: facing,
@@ -191,7 +192,7 @@ fn authors_chair_disc_model_is_a_point_robot() {
     assert!(base_collides(
         &scene,
         &robot,
-        BasePose {
+        Pose2 {
             x_m: 1.25,
             y_m: 4.5,
             yaw_rad: facing
@@ -201,7 +202,7 @@ fn authors_chair_disc_model_is_a_point_robot() {
     assert!(base_collides(
         &scene,
         &robot,
-        BasePose {
+        Pose2 {
             x_m: 0.0,
             y_m: 5.9,
             yaw_rad: facing
@@ -210,7 +211,7 @@ fn authors_chair_disc_model_is_a_point_robot() {
     assert!(!base_collides(
         &scene,
         &robot,
-        BasePose {
+        Pose2 {
             x_m: 0.0,
             y_m: 5.7,
             yaw_rad: facing
@@ -364,7 +365,7 @@ fn chairs_near_gives_the_same_collisions_in_its_box() {
             assert!(near.chairs.len() <= scene.chairs.len());
             for i in 0..=20 {
                 for j in 0..=10 {
-                    let base = BasePose {
+                    let base = Pose2 {
                         x_m: x0 + (x1 - x0) * i as f64 / 20.0,
                         y_m: y0 + (y1 - y0) * j as f64 / 10.0,
                         yaw_rad: 0.37 * (i + j) as f64,

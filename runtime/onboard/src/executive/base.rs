@@ -282,7 +282,7 @@ impl BaseDevice for ScriptedBase {
         let o = &mut self.odometry;
         o.x_m += v * o.yaw_rad.cos() * dt;
         o.y_m += v * o.yaw_rad.sin() * dt;
-        o.yaw_rad = crate::localisation::wrap(o.yaw_rad + w * dt);
+        o.yaw_rad = planar::wrap_angle(o.yaw_rad + w * dt);
         o.speed_mps = v;
         o.yaw_rate_radps = w;
         o.stamp = now;

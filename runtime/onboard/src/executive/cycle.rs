@@ -67,10 +67,7 @@ pub struct CycleInputs<'a> {
     pub sent: Twist,
     /// A scan-to-map alignment that came in: the base pose it found and the odometry pose the
     /// scan was taken at.
-    pub aligned: Option<(
-        crate::localisation::PlanarPose,
-        crate::localisation::PlanarPose,
-    )>,
+    pub aligned: Option<(planar::Pose2, planar::Pose2)>,
     /// The operator's enable (the safety work makes start-up wait for it).
     pub operator_enable: bool,
     /// What the range sensor sees now: the collision monitor's points (base frame, moved with

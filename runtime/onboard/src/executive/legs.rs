@@ -9,15 +9,15 @@
 use std::time::Duration;
 
 use grop_ipc::{EventKind, ReplanReason, TaskStep, TaskStepKind};
+use motion_control::Twist;
 use motion_control::follower::FollowStep;
-use motion_control::{Pose2, Twist};
+use planar::{Pose2, wrap_angle};
 
 use super::AbortReason;
 use super::cycle::{CycleInputs, CycleOutputs};
 use super::mission::{MissionCore, Phase};
 use super::worker::{Answer, Job, PathFailure, SeenPoints};
 use crate::docking::{DOCK_SHIFTS_M, DOCKING_LINE_MARGIN_M};
-use crate::localisation::{PlanarPose, wrap};
 
 /// Legs that may fail in a row before the mission is given up.
 pub const MAX_FAILED_LEGS: u32 = 3;
@@ -45,7 +45,7 @@ impl MissionCore {
     pub(super) fn leg(
         &mut self,
         step: &TaskStep,
-        pose: PlanarPose,
+        pose: Pose2,
         phase: Option<Phase>,
         inputs: &CycleInputs<'_>,
         outputs: &mut CycleOutputs,
@@ -94,11 +94,7 @@ impl MissionCore {
                 }
             }
             Some(Phase::Following { deadline }) => {
-                let p = Pose2 {
-                    x_m: pose.x_m as f32,
-                    y_m: pose.y_m as f32,
-                    yaw_rad: pose.yaw_rad as f32,
-                };
+                let p = pose.to_f32();
                 if now > deadline {
                     self.leg_failed(step, now, "leg took too long (blocked?)", outputs)
                 } else {
@@ -114,7 +110,7 @@ impl MissionCore {
                 }
             }
             Some(Phase::Aligning { deadline }) => {
-                let err = wrap(step.yaw_rad - pose.yaw_rad);
+                let err = wrap_angle(step.yaw_rad - pose.yaw_rad);
                 if err.abs() <= self.config.yaw_tolerance_rad {
                     Some(Phase::Settling {
                         until: now + self.config.settle,
@@ -189,7 +185,7 @@ impl MissionCore {
                 None => {
                     self.failed_legs = 0;
                     self.dock_goal = None;
-                    let err = pose.distance_m(&PlanarPose::new(step.x_m, step.y_m, 0.0));
+                    let err = pose.distance_m(&Pose2::new(step.x_m, step.y_m, 0.0));
                     self.event(
                         EventKind::GoalReached,
                         now,
@@ -214,7 +210,7 @@ impl MissionCore {
     fn start_leg(
         &mut self,
         step: &TaskStep,
-        pose: PlanarPose,
+        pose: Pose2,
         now: Duration,
         outputs: &mut CycleOutputs,
     ) -> Option<Phase> {
@@ -238,7 +234,7 @@ impl MissionCore {
     fn request_path(
         &mut self,
         step: &TaskStep,
-        pose: PlanarPose,
+        pose: Pose2,
         now: Duration,
         outputs: &mut CycleOutputs,
     ) -> Option<Phase> {
@@ -283,7 +279,7 @@ impl MissionCore {
     /// the leg fails before the base drives in. Without a sensor, the goal as planned.
     fn docking_goal_in_the_scan(
         &mut self,
-        pose: PlanarPose,
+        pose: Pose2,
         goal: [f64; 4],
         inputs: &CycleInputs<'_>,
         outputs: &mut CycleOutputs,
@@ -316,8 +312,8 @@ impl MissionCore {
 
     /// When a leg must have ended: the factor times its planned (or straight-line) travel time,
     /// plus the slack; a travel cost no duration can hold counts as the straight line's.
-    fn leg_deadline(&self, step: &TaskStep, pose: PlanarPose, now: Duration) -> Duration {
-        let straight_s = pose.distance_m(&PlanarPose::new(step.x_m, step.y_m, 0.0))
+    fn leg_deadline(&self, step: &TaskStep, pose: Pose2, now: Duration) -> Duration {
+        let straight_s = pose.distance_m(&Pose2::new(step.x_m, step.y_m, 0.0))
             / self.config.robot.speed_mps.max(0.05);
         let planned = step.travel_cost_s.max(straight_s);
         let allowed = Duration::try_from_secs_f64(planned * self.config.leg_time_factor)
@@ -368,7 +364,7 @@ impl MissionCore {
 /// `pose` to `goal` clear: the footprint grown by [`DOCKING_LINE_MARGIN_M`], facing along the
 /// line, every 5 cm. Allocation free.
 fn scan_line_clear(
-    pose: PlanarPose,
+    pose: Pose2,
     goal: (f64, f64),
     scan: &motion_control::collision::Obstacles,
     robot: &world::RobotConfig,

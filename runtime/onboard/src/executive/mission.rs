@@ -19,6 +19,7 @@ use grop_ipc::{
 };
 use motion_control::Twist;
 use motion_control::follower::PathFollower;
+use planar::Pose2;
 use rmp_base::{BaseError, BaseMode, Tick};
 use ur5e_kin::Joints;
 use world::nav::OccupancyGrid;
@@ -30,7 +31,7 @@ use super::unload::{
 };
 use super::worker::{Answer, Job, MAX_PATH_POINTS};
 use super::{AbortReason, ExecutiveConfig, MAX_TRAY_SLOTS, MissionState};
-use crate::localisation::{FixOutcome, Localiser, PlanarPose};
+use crate::localisation::{FixOutcome, Localiser};
 pub(super) use grop_clock::duration_ns as ns;
 
 /// The arm must reach its carry pose within this.
@@ -90,7 +91,7 @@ pub(super) enum Phase {
     AwaitTableFix { since: Duration },
     /// Backing straight out from the table before the next leg.
     Reversing {
-        start: PlanarPose,
+        start: Pose2,
         distance_m: f64,
         deadline: Duration,
     },
@@ -296,7 +297,7 @@ impl MissionCore {
     }
 
     /// The localisation estimate.
-    pub fn estimate(&self) -> PlanarPose {
+    pub fn estimate(&self) -> Pose2 {
         self.localiser.estimate()
     }
 
@@ -438,8 +439,7 @@ impl MissionCore {
         let now = inputs.now;
         // Localisation: odometry, then fixes.
         let odo = inputs.base.odometry;
-        self.localiser
-            .on_odometry(PlanarPose::new(odo.x_m, odo.y_m, odo.yaw_rad));
+        self.localiser.on_odometry(odo.pose());
         for fix in inputs.fixes {
             if fix.stamp_ns > ns(now.saturating_add(self.config.fix_future_tolerance)) {
                 self.future_fixes += 1;
@@ -474,7 +474,7 @@ impl MissionCore {
                 }
                 continue;
             }
-            let pose = PlanarPose::new(pose[0], pose[1], pose[2]);
+            let pose = Pose2::new(pose[0], pose[1], pose[2]);
             let outcome = match fix.kind() {
                 Ok(PoseFixKind::Global) => {
                     let outcome = self.localiser.on_global_fix(pose, fix.stamp_ns);
@@ -903,7 +903,7 @@ impl MissionCore {
     fn start_unload(
         &mut self,
         step: &TaskStep,
-        at: PlanarPose,
+        at: Pose2,
         now: Duration,
         outputs: &mut CycleOutputs,
     ) -> Option<Phase> {
@@ -919,11 +919,7 @@ impl MissionCore {
         self.next_job_id += 1;
         outputs.job = Some(Job::Unload {
             id,
-            base: ur5e_kin::BasePose {
-                x_m: at.x_m,
-                y_m: at.y_m,
-                yaw_rad: at.yaw_rad,
-            },
+            base: at,
             target: step.target_m,
             from_slot: self.tray.pick_above[slot.min(self.tray.pick_above.len() - 1)],
             carry: self.tray.carry,

@@ -13,7 +13,7 @@ use std::time::Duration;
 use motion_control::collision::Obstacles;
 use world::Scene;
 
-use crate::localisation::PlanarPose;
+use planar::Pose2;
 
 /// A range sensor as the shell polls it (never blocks).
 pub trait RangeSensor: Send {
@@ -70,7 +70,7 @@ impl MapOverhangs {
     }
 
     /// Adds the overhang points near `estimate` to `out`, in the base frame of the estimate.
-    pub fn add_to(&self, estimate: PlanarPose, own: [f32; 2], out: &mut Obstacles) {
+    pub fn add_to(&self, estimate: Pose2, own: [f32; 2], out: &mut Obstacles) {
         let (s, c) = estimate.yaw_rad.sin_cos();
         for e in &self.edges {
             let (dx, dy) = (e[2] - e[0], e[3] - e[1]);
@@ -106,7 +106,7 @@ mod tests {
         out.clear(0);
         // 0.5 m in front of the banquet table's near edge, facing it.
         let near_y = scene.banquet_table.y_min_m();
-        let pose = PlanarPose::new(0.0, near_y - 0.5, std::f64::consts::FRAC_PI_2);
+        let pose = Pose2::new(0.0, near_y - 0.5, std::f64::consts::FRAC_PI_2);
         overhangs.add_to(pose, [0.3, 0.275], &mut out);
         assert!(!out.is_empty());
         // The nearest point is straight ahead, 0.5 m.
@@ -121,7 +121,7 @@ mod tests {
         // Far from every table: nothing.
         let mut far = Obstacles::new();
         far.clear(0);
-        overhangs.add_to(PlanarPose::new(8.0, 2.5, 0.0), [0.3, 0.275], &mut far);
+        overhangs.add_to(Pose2::new(8.0, 2.5, 0.0), [0.3, 0.275], &mut far);
         assert!(far.is_empty());
     }
 }

@@ -12,7 +12,7 @@
 use faer::Mat;
 use world::Scene;
 
-use crate::localisation::{PlanarPose, wrap};
+use planar::{Pose2, wrap_angle};
 
 /// Points farther than this from every map edge are not paired (m) in the first iterations;
 /// the gate then narrows ([`MATCH_SCHEDULE_M`]).
@@ -133,7 +133,7 @@ impl MapEdges {
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Alignment {
     /// The base pose that best explains the scan.
-    pub pose: PlanarPose,
+    pub pose: Pose2,
     /// Points paired with a map edge in the last iteration (within [`FINAL_MATCH_M`]).
     pub pairs: usize,
     /// Points given.
@@ -156,7 +156,7 @@ impl Alignment {
 }
 
 /// Aligns `points` (base frame, m) to `map` starting from `prior`.
-pub fn align(map: &MapEdges, points: &[[f32; 2]], prior: PlanarPose) -> Alignment {
+pub fn align(map: &MapEdges, points: &[[f32; 2]], prior: Pose2) -> Alignment {
     // Only the edges that can matter (a few hundred of the map's).
     let near: Vec<[f64; 4]> = map
         .segments
@@ -229,10 +229,10 @@ pub fn align(map: &MapEdges, points: &[[f32; 2]], prior: PlanarPose) -> Alignmen
         }
         rms = (sum2 / n as f64).sqrt();
         let Some(step) = solve(h, g) else { break };
-        pose = PlanarPose::new(
+        pose = Pose2::new(
             pose.x_m - step[0],
             pose.y_m - step[1],
-            wrap(pose.yaw_rad - step[2]),
+            wrap_angle(pose.yaw_rad - step[2]),
         );
         // Converged under the last gate: done (under a wider one, narrow it first).
         if gate <= FINAL_MATCH_M && step[0].hypot(step[1]) < 1e-4 && step[2].abs() < 1e-4 {
@@ -264,7 +264,7 @@ mod tests {
     use world::RayScene;
 
     /// A level ring of points from the ray scene at the true pose, in the base frame.
-    fn scan_at(scene: &Scene, truth: PlanarPose) -> Vec<[f32; 2]> {
+    fn scan_at(scene: &Scene, truth: Pose2) -> Vec<[f32; 2]> {
         scan_with_rings(scene, truth, &[0.0])
     }
 
@@ -276,13 +276,16 @@ mod tests {
         )
         .expect("example scene");
         let map = MapEdges::of_scene(&scene);
-        let truth = PlanarPose::new(1.0, 4.9, std::f64::consts::FRAC_PI_2);
+        let truth = Pose2::new(1.0, 4.9, std::f64::consts::FRAC_PI_2);
         let points = scan_at(&scene, truth);
-        let prior = PlanarPose::new(1.09, 4.82, std::f64::consts::FRAC_PI_2 + 0.03);
+        let prior = Pose2::new(1.09, 4.82, std::f64::consts::FRAC_PI_2 + 0.03);
         let a = align(&map, &points, prior);
         assert!(a.accepted(), "{a:?}");
         assert!(a.pose.distance_m(&truth) < 0.01, "{a:?}");
-        assert!(wrap(a.pose.yaw_rad - truth.yaw_rad).abs() < 0.005, "{a:?}");
+        assert!(
+            wrap_angle(a.pose.yaw_rad - truth.yaw_rad).abs() < 0.005,
+            "{a:?}"
+        );
     }
 
     #[test]
@@ -296,20 +299,20 @@ mod tests {
                 [a.cos() as f32, a.sin() as f32]
             })
             .collect();
-        let a = align(&map, &points, PlanarPose::new(0.0, 2.0, 0.0));
+        let a = align(&map, &points, Pose2::new(0.0, 2.0, 0.0));
         assert!(!a.accepted(), "{a:?}");
     }
 
     /// What the executive's sensor keeps: the VLP-16's 16 rings from 0.4 m up, returns between
     /// 5 cm and the body's 1 m, the nearest per 0.5 degree bearing, in the base frame.
-    fn ring_scan_at(scene: &Scene, truth: PlanarPose) -> Vec<[f32; 2]> {
+    fn ring_scan_at(scene: &Scene, truth: Pose2) -> Vec<[f32; 2]> {
         let rings: Vec<f64> = (0..16).map(|ring| f64::from(2 * ring - 15)).collect();
         scan_with_rings(scene, truth, &rings)
     }
 
     /// The nearest return per 0.5 degree bearing of lasers at `elevations_deg` from 0.4 m up,
     /// kept between 5 cm and 1 m above the floor, in the base frame.
-    fn scan_with_rings(scene: &Scene, truth: PlanarPose, elevations_deg: &[f64]) -> Vec<[f32; 2]> {
+    fn scan_with_rings(scene: &Scene, truth: Pose2, elevations_deg: &[f64]) -> Vec<[f32; 2]> {
         let rays = RayScene::from_scene(scene);
         (0..720)
             .filter_map(|k| {
@@ -344,13 +347,13 @@ mod tests {
         .expect("scene 06");
         let map = MapEdges::of_scene(&scene);
         for truth in [
-            PlanarPose::new(0.116, 1.95, -1.54),
-            PlanarPose::new(0.0, 2.0, std::f64::consts::FRAC_PI_2),
-            PlanarPose::new(0.12, 1.3, -std::f64::consts::FRAC_PI_2),
+            Pose2::new(0.116, 1.95, -1.54),
+            Pose2::new(0.0, 2.0, std::f64::consts::FRAC_PI_2),
+            Pose2::new(0.12, 1.3, -std::f64::consts::FRAC_PI_2),
         ] {
             let points = ring_scan_at(&scene, truth);
             for (dx, dy) in [(0.0, 0.0), (-0.1, 0.0), (-0.116, 0.094), (0.05, 0.05)] {
-                let prior = PlanarPose::new(truth.x_m + dx, truth.y_m + dy, truth.yaw_rad);
+                let prior = Pose2::new(truth.x_m + dx, truth.y_m + dy, truth.yaw_rad);
                 let a = align(&map, &points, prior);
                 assert!(a.accepted(), "truth {truth:?}, prior {prior:?}: {a:?}");
                 assert!(

@@ -15,13 +15,14 @@ use grop_ipc::{
     ArmSafety, ArmStateMsg, BaseMode as IpcBaseMode, BasePoseMsg, BaseStateMsg, EventMsg,
     HeartbeatMsg, IpcNode, ProcessRole, ReplanRequestMsg, TaskPlanMsg, TopicPublisher,
 };
+use planar::Pose2;
 use rmp_base::{BaseError, CanLink, RmpBase, Tick};
 use rmp_codec::v3::OperationalState;
 use world::Scene;
 use world::nav::OccupancyGrid;
 
+use motion_control::Twist;
 use motion_control::collision::{CollisionMonitor, MonitorConfig, Obstacles, Verdict};
-use motion_control::{Pose2, Twist};
 
 use super::base::BaseDevice;
 use super::cycle::{ArmCommand, BaseReading, CycleInputs, CycleOutputs};
@@ -34,7 +35,6 @@ use super::{
     AbortReason, ArmDevice, ArmSnapshot, ExecutiveConfig, ExecutiveError, ExecutiveStats,
     MAX_TRAY_SLOTS, MissionState,
 };
-use crate::localisation::PlanarPose;
 
 /// Most pose fixes one base cycle takes in (the world sends one or two per cycle); the rest
 /// wait in the subscriber's queue for the next cycle.
@@ -119,7 +119,7 @@ pub struct Executive<D: BaseDevice, A: ArmDevice> {
     /// A scan alignment is with the worker.
     align_in_flight: bool,
     /// An accepted alignment for the next update (pose, odometry then).
-    aligned: Option<(PlanarPose, PlanarPose)>,
+    aligned: Option<(Pose2, Pose2)>,
     /// Alignments the worker made and the shell refused (too few pairs, residual too large).
     alignments_refused: u64,
     /// The first cycle's time: an enable given before it is not for this executive.
@@ -514,8 +514,7 @@ impl<D: BaseDevice, A: ArmDevice> Executive<D, A> {
                 Some(Answer::Align(_, alignment, odom)) => {
                     self.align_in_flight = false;
                     if alignment.accepted() {
-                        let p = alignment.pose;
-                        self.aligned = Some((PlanarPose::new(p.x_m, p.y_m, p.yaw_rad), odom));
+                        self.aligned = Some((alignment.pose, odom));
                     } else {
                         self.alignments_refused += 1;
                     }
@@ -566,7 +565,7 @@ impl<D: BaseDevice, A: ArmDevice> Executive<D, A> {
                 let job = Job::Align {
                     id: 0,
                     prior: e,
-                    odom: PlanarPose::new(odometry.x_m, odometry.y_m, odometry.yaw_rad),
+                    odom: odometry.pose(),
                     count: count as u16,
                     points,
                 };
@@ -577,13 +576,11 @@ impl<D: BaseDevice, A: ArmDevice> Executive<D, A> {
         } else if let (Some(before), Some(obstacles)) = (g.last_odometry, g.monitor.obstacles_mut())
         {
             // The base moved since the last cycle: the new base pose in the old base frame.
-            let (s, c) = before.yaw_rad.sin_cos();
-            let (dx, dy) = (odometry.x_m - before.x_m, odometry.y_m - before.y_m);
-            obstacles.move_base(Pose2::new(
-                (c * dx + s * dy) as f32,
-                (-s * dx + c * dy) as f32,
-                crate::localisation::wrap(odometry.yaw_rad - before.yaw_rad) as f32,
-            ));
+            let (x_m, y_m) = before
+                .pose()
+                .inverse_transform_point(odometry.x_m, odometry.y_m);
+            let yaw_rad = planar::wrap_angle(odometry.yaw_rad - before.yaw_rad);
+            obstacles.move_base(Pose2::new(x_m, y_m, yaw_rad).to_f32());
         }
         g.last_odometry = Some(odometry);
         let now_us = u64::try_from(now.as_micros()).unwrap_or(u64::MAX);

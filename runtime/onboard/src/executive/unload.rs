@@ -10,7 +10,8 @@
 use std::time::Duration;
 
 use nalgebra::Point3;
-use ur5e_kin::{BasePose, Joints, ObstacleBox, PlaceConfig, PlaceFailure, plan_place};
+use planar::Pose2;
+use ur5e_kin::{Joints, ObstacleBox, PlaceConfig, PlaceFailure, plan_place};
 
 /// How far above the target (and the tray slot) the gripper approaches and retreats, m.
 pub const APPROACH_HEIGHT_M: f64 = 0.08;
@@ -90,7 +91,7 @@ pub fn default_tray_slots() -> [[f64; 3]; 3] {
 /// Solves the tray's joints from slot positions in the base frame (the base at the origin, no
 /// furniture): an error names the slot the arm cannot reach.
 pub fn solve_tray(cfg: &PlaceConfig, slots: &[[f64; 3]]) -> Result<TrayGeometry, String> {
-    let origin = BasePose::default();
+    let origin = Pose2::default();
     let mut pick = Vec::with_capacity(slots.len());
     let mut pick_above = Vec::with_capacity(slots.len());
     for (k, s) in slots.iter().enumerate() {
@@ -199,7 +200,7 @@ fn waypoints(path: &[Joints]) -> Waypoints {
 /// the executive's worker (it allocates).
 pub fn plan_unload(
     cfg: &PlaceConfig,
-    base: BasePose,
+    base: Pose2,
     target: [f64; 3],
     obstacles: &[ObstacleBox],
     from_slot: &Joints,
@@ -232,7 +233,7 @@ pub fn plan_unload(
 /// `obstacles` (world frame). Allocates nothing.
 pub fn solve_place(
     cfg: &PlaceConfig,
-    base: BasePose,
+    base: Pose2,
     target: [f64; 3],
     obstacles: &[ObstacleBox],
 ) -> Result<PlaceJoints, PlaceFailure> {

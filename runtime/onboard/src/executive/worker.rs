@@ -11,7 +11,8 @@ use std::sync::Arc;
 use grop_clock::Clock;
 use std::sync::mpsc::{Receiver, SyncSender, TrySendError, sync_channel};
 
-use ur5e_kin::{BasePose, Joints};
+use planar::Pose2;
+use ur5e_kin::Joints;
 use world::nav::OccupancyGrid;
 use world::{RobotConfig, Scene};
 
@@ -55,7 +56,7 @@ pub enum Job {
         /// Request id.
         id: u64,
         /// Measured base pose.
-        base: BasePose,
+        base: Pose2,
         /// Object goal, world (m).
         target: [f64; 3],
         /// Joints over the object's tray slot (where the transit starts).
@@ -70,9 +71,9 @@ pub enum Job {
         /// Request id.
         id: u64,
         /// The estimate when the scan was taken.
-        prior: crate::localisation::PlanarPose,
+        prior: planar::Pose2,
         /// The odometry pose then.
-        odom: crate::localisation::PlanarPose,
+        odom: planar::Pose2,
         /// Points used in `points`.
         count: u16,
         /// The scan's points, base frame (m).
@@ -136,11 +137,7 @@ pub enum Answer {
     /// To an unload job.
     Unload(u64, Result<UnloadPlan, UnloadFailure>),
     /// A scan alignment and the odometry it was taken at.
-    Align(
-        u64,
-        super::scan_match::Alignment,
-        crate::localisation::PlanarPose,
-    ),
+    Align(u64, super::scan_match::Alignment, planar::Pose2),
 }
 
 /// The worker's handle.

@@ -35,6 +35,7 @@ use grop_ipc::{
     TaskStepKind, TruthMsg,
 };
 use nalgebra::Isometry3;
+use planar::{Pose2, wrap_angle};
 use serde::Serialize;
 use world::view::{CELL_SIZE_M, world_to_cell};
 use world::{RobotConfig, Scene, Side};
@@ -46,7 +47,6 @@ use super::foxglove::{
     SceneEntity, SceneUpdate, SpherePrimitive, TextPrimitive, Time, Vector2, level, rgba, v3,
 };
 use super::psi_views::PsiViews;
-use crate::localisation::{PlanarPose, wrap};
 
 /// The fixed frame.
 pub const MAP: &str = "map";
@@ -115,7 +115,7 @@ struct Step {
     kind: Option<TaskStepKind>,
     object: u32,
     load_mask: u64,
-    pose: PlanarPose,
+    pose: Pose2,
     feasibility: f64,
 }
 
@@ -129,9 +129,9 @@ pub struct Views {
     joints: Option<[f64; 6]>,
     last_tf_ns: Option<u64>,
     /// The dead-reckoned pose, its stamp and the speeds measured then.
-    odom: Option<(PlanarPose, u64, f64, f64)>,
-    estimate: Option<PlanarPose>,
-    driven: Vec<PlanarPose>,
+    odom: Option<(Pose2, u64, f64, f64)>,
+    estimate: Option<Pose2>,
+    driven: Vec<Pose2>,
     driven_changed: bool,
     last_path_ns: Option<u64>,
     plans: Vec<(u64, Vec<Step>)>,
@@ -139,7 +139,7 @@ pub struct Views {
     on_tray: u64,
     scene_changed: bool,
     /// The world's newest truth (HIL only).
-    truth: Option<PlanarPose>,
+    truth: Option<Pose2>,
     psi: PsiViews,
     out: Vec<(Channel, u64, Vec<u8>)>,
 }
@@ -169,7 +169,7 @@ fn rounded(q: Quaternion) -> Quaternion {
 }
 
 /// A pose on the floor for a view (rounded).
-fn floor_pose(p: &PlanarPose) -> Pose {
+fn floor_pose(p: &Pose2) -> Pose {
     Pose {
         position: v3(mm(p.x_m), mm(p.y_m), 0.0),
         orientation: rounded(Quaternion::yaw(p.yaw_rad)),
@@ -193,7 +193,7 @@ fn transform(stamp: Time, parent: &str, child: &str, iso: &Isometry3<f64>) -> Fr
     }
 }
 
-fn planar_transform(stamp: Time, parent: &str, child: &str, p: &PlanarPose) -> FrameTransform {
+fn planar_transform(stamp: Time, parent: &str, child: &str, p: &Pose2) -> FrameTransform {
     let pose = floor_pose(p);
     FrameTransform {
         timestamp: stamp,
@@ -260,7 +260,7 @@ impl Views {
 
     /// The simulated world's truth: the `truth_base_link` frame from the next `/tf` on.
     pub fn truth(&mut self, m: &TruthMsg) {
-        let p = PlanarPose::new(m.x_m, m.y_m, m.yaw_rad);
+        let p = Pose2::new(m.x_m, m.y_m, m.yaw_rad);
         if p.is_finite() {
             if self.truth.is_none() {
                 // The ghost body joins the scene.
@@ -284,7 +284,7 @@ impl Views {
 
     /// The base's state: the estimate, the dead reckoning, `/tf` and the driven path.
     pub fn base_state(&mut self, m: &BaseStateMsg) {
-        let estimate = PlanarPose::new(m.x_m, m.y_m, m.yaw_rad);
+        let estimate = Pose2::new(m.x_m, m.y_m, m.yaw_rad);
         if !estimate.is_finite() {
             return;
         }
@@ -295,14 +295,14 @@ impl Views {
             (0.0, 0.0)
         };
         let odom = match self.odom {
-            None => PlanarPose::default(),
+            None => Pose2::default(),
             Some((p, stamp, v, w)) => {
                 let dt = m.stamp_ns.saturating_sub(stamp) as f64 * 1e-9;
                 let mid = p.yaw_rad + 0.5 * w * dt;
-                PlanarPose::new(
+                Pose2::new(
                     p.x_m + v * dt * mid.cos(),
                     p.y_m + v * dt * mid.sin(),
-                    wrap(p.yaw_rad + w * dt),
+                    wrap_angle(p.yaw_rad + w * dt),
                 )
             }
         };
@@ -316,7 +316,7 @@ impl Views {
         }
         let moved = self.driven.last().is_none_or(|last| {
             last.distance_m(&estimate) >= PATH_STEP_M
-                || wrap(last.yaw_rad - estimate.yaw_rad).abs() >= PATH_STEP_RAD
+                || wrap_angle(last.yaw_rad - estimate.yaw_rad).abs() >= PATH_STEP_RAD
         });
         if moved {
             self.driven.push(estimate);
@@ -339,7 +339,7 @@ impl Views {
         }
     }
 
-    fn push_tf(&mut self, stamp_ns: u64, estimate: &PlanarPose, odom: &PlanarPose) {
+    fn push_tf(&mut self, stamp_ns: u64, estimate: &Pose2, odom: &Pose2) {
         let t = Time::from_ns(stamp_ns);
         let map_from_odom = estimate.compose(&odom.inverse());
         let mut transforms = vec![
@@ -392,7 +392,7 @@ impl Views {
                 kind: s.kind().ok(),
                 object: s.object_index,
                 load_mask: s.load_mask,
-                pose: PlanarPose::new(s.x_m, s.y_m, s.yaw_rad),
+                pose: Pose2::new(s.x_m, s.y_m, s.yaw_rad),
                 feasibility: s.feasibility,
             })
             .collect();
@@ -679,12 +679,12 @@ impl Views {
         // The newest plan's standing spots (where each object is unloaded from), with their F.
         let mut spots = SceneEntity::new(t, MAP, "standing_spots".to_owned());
         if let Some((_, steps)) = self.plans.last() {
-            let mut last_goal: Option<PlanarPose> = None;
+            let mut last_goal: Option<Pose2> = None;
             for st in steps {
                 match st.kind {
                     Some(TaskStepKind::Navigate) => last_goal = Some(st.pose),
                     Some(TaskStepKind::Unload) => {
-                        if let Some(g) = last_goal.filter(PlanarPose::is_finite) {
+                        if let Some(g) = last_goal.filter(Pose2::is_finite) {
                             spots.arrows.push(ArrowPrimitive {
                                 pose: Pose::planar(g.x_m, g.y_m, 0.02, g.yaw_rad),
                                 shaft_length: 0.25,

@@ -77,7 +77,7 @@ fn direction_heading(d: usize) -> f64 {
 fn mid_heading(d: usize) -> f64 {
     let a = direction_heading(d);
     let b = direction_heading(d + 1);
-    a + 0.5 * crate::geometry::wrap_angle_rad(b - a)
+    a + 0.5 * planar::wrap_angle(b - a)
 }
 
 /// What the base must stay clear of: the room's walls, the furniture's footprints and points
@@ -184,7 +184,7 @@ impl Clearance {
         to_yaw: f64,
         free: &dyn Fn(f64, f64, f64) -> bool,
     ) -> bool {
-        let turn = crate::geometry::wrap_angle_rad(to_yaw - from_yaw);
+        let turn = planar::wrap_angle(to_yaw - from_yaw);
         let steps = (turn.abs() / TURN_STEP_RAD).ceil().max(1.0) as usize;
         (0..=steps).all(|k| free(x_m, y_m, from_yaw + turn * k as f64 / steps as f64))
     }
@@ -511,8 +511,8 @@ impl Lattice {
         }
         let d0 = (0..DIRECTIONS)
             .min_by(|&a, &b| {
-                let ea = crate::geometry::wrap_angle_rad(direction_heading(a) - from_yaw).abs();
-                let eb = crate::geometry::wrap_angle_rad(direction_heading(b) - from_yaw).abs();
+                let ea = planar::wrap_angle(direction_heading(a) - from_yaw).abs();
+                let eb = planar::wrap_angle(direction_heading(b) - from_yaw).abs();
                 ea.total_cmp(&eb)
             })
             .unwrap_or(0);
@@ -558,9 +558,7 @@ impl Lattice {
                 if here & (1 << (nd % 8)) == 0 || here & (1 << mid_bit) == 0 {
                     continue;
                 }
-                let turn =
-                    crate::geometry::wrap_angle_rad(direction_heading(nd) - direction_heading(d))
-                        .abs();
+                let turn = planar::wrap_angle(direction_heading(nd) - direction_heading(d)).abs();
                 let cand = cost[s] + turn / self.yaw_rate_radps + TURN_PENALTY_S;
                 relax(
                     &mut cost,
