@@ -45,6 +45,22 @@ pub use stats::Summary;
 
 use std::time::Duration;
 
+/// What a fallible step of a measurement was, for its error (the typed counterpart of a
+/// binary's `anyhow::Context`).
+pub trait Step<T> {
+    /// The error, if any, as [`BenchError::Setup`] naming `what` was being done.
+    fn step(self, what: &str) -> Result<T, BenchError>;
+}
+
+impl<T, E: std::fmt::Display> Step<T> for Result<T, E> {
+    fn step(self, what: &str) -> Result<T, BenchError> {
+        self.map_err(|e| BenchError::Setup {
+            what: what.to_owned(),
+            detail: e.to_string(),
+        })
+    }
+}
+
 /// Why a measurement could not be made.
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]

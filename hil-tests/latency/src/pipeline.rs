@@ -10,12 +10,12 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
-use anyhow::{Context, bail};
 use grop_ipc::{CameraFrameMsg, IpcNode, ReplanReason, ReplanRequestMsg, TaskPlanMsg};
 use grop_onboard::deployment::PlannerSettings;
 use grop_onboard::planner_node::PlannerNode;
 
 use crate::stats::Summary;
+use crate::{BenchError, Step};
 
 /// What [`frame_to_plan`] measured.
 #[derive(Debug, Clone)]
@@ -44,17 +44,23 @@ pub fn frame_to_plan(
     model: &Path,
     namespace: &str,
     rt: Option<grop_clock::rt::RtSettings>,
-) -> anyhow::Result<PipelineResult> {
+) -> Result<PipelineResult, BenchError> {
     let scene = world::generate::evaluation_scene(7, 15, 3);
     let robot = world::RobotConfig::default();
-    let harness = IpcNode::new(namespace, "latency-pipeline").context("iceoryx2")?;
-    let frames = harness.publisher::<CameraFrameMsg>()?;
-    let requests = harness.publisher::<ReplanRequestMsg>()?;
-    let plans = harness.subscriber::<TaskPlanMsg>()?;
+    let harness = IpcNode::new(namespace, "latency-pipeline").step("iceoryx2")?;
+    let frames = harness
+        .publisher::<CameraFrameMsg>()
+        .step("the frame publisher")?;
+    let requests = harness
+        .publisher::<ReplanRequestMsg>()
+        .step("the request publisher")?;
+    let plans = harness
+        .subscriber::<TaskPlanMsg>()
+        .step("the plan subscriber")?;
 
     let camera = world::camera::OverheadCamera::fitting_room_with(&scene, 640, 480);
     let mut image = vec![0u8; camera.rgb8_len()];
-    world::camera::render_frame(&scene, &camera, &mut image).context("rendering the frame")?;
+    world::camera::render_frame(&scene, &camera, &mut image).step("rendering the frame")?;
 
     let stop = Arc::new(AtomicBool::new(false));
     let node_stop = Arc::clone(&stop);
@@ -63,7 +69,7 @@ pub fn frame_to_plan(
     // The node lives on its own thread (Psi's evaluator is not Send): built there, run there.
     let planner = std::thread::Builder::new()
         .name("planner-node".into())
-        .spawn(move || -> anyhow::Result<()> {
+        .spawn(move || -> Result<(), String> {
             let policy = match rt {
                 Some(settings) => {
                     let report = grop_clock::rt::apply(&settings);
@@ -95,22 +101,33 @@ pub fn frame_to_plan(
                 }
                 Err(e) => {
                     let _ = ready_tx.send(Err(e.clone()));
-                    bail!(e);
+                    return Err(e);
                 }
             };
-            node.run(&grop_clock::WallClock, &node_stop)?;
+            node.run(&grop_clock::WallClock, &node_stop)
+                .map_err(|e| e.to_string())?;
             Ok(())
         })
-        .context("starting the planner node")?;
+        .step("starting the planner node")?;
     match ready.recv_timeout(Duration::from_secs(60)) {
         Ok(Ok(())) => {}
-        Ok(Err(e)) => bail!(e),
-        Err(_) => bail!("the planner node did not start within a minute"),
+        Ok(Err(e)) => {
+            return Err(BenchError::Setup {
+                what: "the planner node".to_owned(),
+                detail: e,
+            });
+        }
+        Err(_) => {
+            return Err(BenchError::Timeout {
+                what: "the planner node's start".to_owned(),
+                after: Duration::from_secs(60),
+            });
+        }
     }
 
     let mut to_plan: Vec<u64> = Vec::with_capacity(samples);
     let mut decision: Vec<u64> = Vec::with_capacity(samples);
-    let result = (|| -> anyhow::Result<()> {
+    let result = (|| -> Result<(), BenchError> {
         for i in 0..samples as u64 + 3 {
             // Let the node settle into its wait between samples.
             std::thread::sleep(Duration::from_millis(15));
@@ -121,25 +138,32 @@ pub fn frame_to_plan(
                 stamp,
                 &world::camera::FrameLayout::rgb8(camera),
             );
-            frames.publish_with(|f| {
-                if let Ok(dst) = f.image_mut(header) {
-                    dst.copy_from_slice(&image);
-                }
-            })?;
-            requests.publish_with(|r| {
-                r.request_id = i + 1;
-                r.stamp_ns = monotonic_ns();
-                r.reason = ReplanReason::MissionStart as u32;
-                r.remaining_mask = 0b111;
-                r.pose = [scene.loading_station.x_m, scene.loading_station.y_m, 0.0];
-            })?;
+            frames
+                .publish_with(|f| {
+                    if let Ok(dst) = f.image_mut(header) {
+                        dst.copy_from_slice(&image);
+                    }
+                })
+                .step("publishing a frame")?;
+            requests
+                .publish_with(|r| {
+                    r.request_id = i + 1;
+                    r.stamp_ns = monotonic_ns();
+                    r.reason = ReplanReason::MissionStart as u32;
+                    r.remaining_mask = 0b111;
+                    r.pose = [scene.loading_station.x_m, scene.loading_station.y_m, 0.0];
+                })
+                .step("publishing a request")?;
             let deadline = Instant::now() + Duration::from_secs(5);
             let plan = loop {
                 let left = deadline.saturating_duration_since(Instant::now());
                 if left.is_zero() {
-                    bail!("no plan for request {} within 5 s", i + 1);
+                    return Err(BenchError::Timeout {
+                        what: format!("a plan for request {}", i + 1),
+                        after: Duration::from_secs(5),
+                    });
                 }
-                if let Some(p) = plans.recv_timeout(left)? {
+                if let Some(p) = plans.recv_timeout(left).step("reading plans")? {
                     if p.answers_request == i + 1 {
                         break p;
                     }
@@ -147,11 +171,10 @@ pub fn frame_to_plan(
             };
             let held = monotonic_ns();
             if plan.source_frame_id != frame_id {
-                bail!(
+                return Err(BenchError::Peer(format!(
                     "plan {} used frame {}, not the new frame {frame_id}",
-                    plan.plan_id,
-                    plan.source_frame_id
-                );
+                    plan.plan_id, plan.source_frame_id
+                )));
             }
             // The first samples warm caches and the model's buffers.
             if i >= 3 {
@@ -166,8 +189,15 @@ pub fn frame_to_plan(
     result?;
     match joined {
         Ok(Ok(())) => {}
-        Ok(Err(e)) => return Err(e.context("the planner node")),
-        Err(_) => bail!("the planner node panicked"),
+        Ok(Err(e)) => {
+            return Err(BenchError::Setup {
+                what: "the planner node".to_owned(),
+                detail: e,
+            });
+        }
+        Err(_) => {
+            return Err(BenchError::Peer("the planner node panicked".to_owned()));
+        }
     }
     Ok(PipelineResult {
         setting: rt.map_or_else(|| "no RT settings".to_owned(), |r| format!("`--rt {r}`")),

@@ -10,7 +10,6 @@
 use std::sync::Arc;
 use std::time::Duration;
 
-use anyhow::{Context, bail};
 use can_bus::{CanBus, CanId, MemoryBus};
 use grop_clock::Clock;
 use grop_ipc::{
@@ -23,6 +22,7 @@ use sim_rmp::{SimConfig, SimRmp, SimRmpNode};
 use ur5e_kin::Joints;
 
 use crate::stats::Summary;
+use crate::{BenchError, Step};
 use grop_clock::duration_ns as ns;
 
 /// An arm that is parked and answers every skill as done at once.
@@ -56,7 +56,7 @@ impl ArmDevice for ParkedArm {
     clippy::too_many_lines,
     reason = "one measured mission start, step by step"
 )]
-fn one(namespace: &str) -> anyhow::Result<Duration> {
+fn one(namespace: &str) -> Result<Duration, BenchError> {
     let clock: Arc<dyn Clock> = Arc::new(grop_clock::WallClock);
     let bus = MemoryBus::new();
     let mut tap = bus.join();
@@ -64,8 +64,8 @@ fn one(namespace: &str) -> anyhow::Result<Duration> {
     scene.targets = vec![world::UnloadTarget::on_center_line(0.0)];
     let robot = world::RobotConfig::default();
     let docking = grop_onboard::docking::Docking::new(scene.clone(), &robot);
-    let exec_node = IpcNode::new(namespace, "executive")?;
-    let node = IpcNode::new(namespace, "harness")?;
+    let exec_node = IpcNode::new(namespace, "executive").step("the executive's node")?;
+    let node = IpcNode::new(namespace, "harness").step("the harness's node")?;
     let mut exec = Executive::new(
         // The harness plays the planner and the localiser.
         ExecutiveConfig {
@@ -79,13 +79,19 @@ fn one(namespace: &str) -> anyhow::Result<Duration> {
         scene.clone(),
         1,
     )
-    .context("the executive")?;
+    .step("the executive")?;
     let mut base = SimRmpNode::new(bus.join(), SimRmp::new(SimConfig::default()));
-    let plans = node.publisher::<TaskPlanMsg>()?;
-    let poses = node.publisher::<BasePoseMsg>()?;
-    let health = node.publisher::<HeartbeatMsg>()?;
-    let enable = node.publisher::<grop_ipc::OperatorEnableMsg>()?;
-    let requests = node.subscriber::<ReplanRequestMsg>()?;
+    let plans = node.publisher::<TaskPlanMsg>().step("the plan publisher")?;
+    let poses = node.publisher::<BasePoseMsg>().step("the fix publisher")?;
+    let health = node
+        .publisher::<HeartbeatMsg>()
+        .step("the heartbeat publisher")?;
+    let enable = node
+        .publisher::<grop_ipc::OperatorEnableMsg>()
+        .step("the enable publisher")?;
+    let requests = node
+        .subscriber::<ReplanRequestMsg>()
+        .step("the request subscriber")?;
     let start = scene.robot_start;
     let goal = [start.x_m, start.y_m + 1.2, start.yaw_rad];
     let target = scene.targets[0].as_array();
@@ -99,32 +105,39 @@ fn one(namespace: &str) -> anyhow::Result<Duration> {
     loop {
         let now = clock.now();
         if now.saturating_sub(begin) > Duration::from_secs(20) {
-            bail!(
-                "no motion frame within 20 s (mission {:?}, plan published: {})",
-                exec.state(),
-                plan_at.is_some()
-            );
+            return Err(BenchError::Timeout {
+                what: format!(
+                    "a motion frame (mission {:?}, plan published: {})",
+                    exec.state(),
+                    plan_at.is_some()
+                ),
+                after: Duration::from_secs(20),
+            });
         }
-        base.poll(now).context("the simulated base")?;
+        base.poll(now).step("the simulated base")?;
         if now >= next_fix {
             next_fix = now + Duration::from_millis(100);
             // The base has not moved yet when the sample ends: the start pose is exact.
-            poses.publish(&BasePoseMsg::fix(
-                ns(now),
-                ns(now),
-                PoseFixKind::Global,
-                [start.x_m, start.y_m, start.yaw_rad],
-                0.01,
-                0.01,
-            ))?;
-            health.publish_with(|h| {
-                h.seq = ns(now);
-                h.pid = std::process::id();
-                h.stamp_ns = ns(now);
-                h.set_role(ProcessRole::Planner);
-            })?;
+            poses
+                .publish(&BasePoseMsg::fix(
+                    ns(now),
+                    ns(now),
+                    PoseFixKind::Global,
+                    [start.x_m, start.y_m, start.yaw_rad],
+                    0.01,
+                    0.01,
+                ))
+                .step("publishing a fix")?;
+            health
+                .publish_with(|h| {
+                    h.seq = ns(now);
+                    h.pid = std::process::id();
+                    h.stamp_ns = ns(now);
+                    h.set_role(ProcessRole::Planner);
+                })
+                .step("publishing a heartbeat")?;
         }
-        while let Some(req) = requests.try_recv()? {
+        while let Some(req) = requests.try_recv().step("reading plan requests")? {
             if plan_at.is_none() && exec.state() == MissionState::Running {
                 let id = req.request_id;
                 // One leg to a standing spot at the table, docked as the planner node plans it
@@ -141,13 +154,15 @@ fn one(namespace: &str) -> anyhow::Result<Duration> {
                 );
                 let steps = [leg[0]];
                 let published = clock.now();
-                plans.publish_with(|p| {
-                    p.plan_id = 1;
-                    p.answers_request = id;
-                    p.stamp_ns = ns(published);
-                    p.object_count = 1;
-                    let _ = p.set_steps(&steps);
-                })?;
+                plans
+                    .publish_with(|p| {
+                        p.plan_id = 1;
+                        p.answers_request = id;
+                        p.stamp_ns = ns(published);
+                        p.object_count = 1;
+                        let _ = p.set_steps(&steps);
+                    })
+                    .step("publishing the plan")?;
                 plan_at = Some(published);
             }
         }
@@ -155,14 +170,16 @@ fn one(namespace: &str) -> anyhow::Result<Duration> {
         if !enable_sent {
             enable_sent = true;
             // The operator's enable, once the executive runs (a start is not an enable).
-            enable.publish(&grop_ipc::OperatorEnableMsg {
-                seq: 1,
-                stamp_ns: ns(clock.now()),
-                pid: std::process::id(),
-                reserved: 0,
-            })?;
+            enable
+                .publish(&grop_ipc::OperatorEnableMsg {
+                    seq: 1,
+                    stamp_ns: ns(clock.now()),
+                    pid: std::process::id(),
+                    reserved: 0,
+                })
+                .step("publishing the enable")?;
         }
-        while let Some(frame) = tap.try_recv().context("the bus tap")? {
+        while let Some(frame) = tap.try_recv().step("the bus tap")? {
             let motion = frame.id() == CanId::Standard(rmp_codec::v3::MOTION_ID)
                 && frame.data().iter().any(|b| *b != 0);
             if let (true, Some(at)) = (motion, plan_at) {
@@ -175,7 +192,7 @@ fn one(namespace: &str) -> anyhow::Result<Duration> {
 }
 
 /// `samples` plan-to-motion measurements, each with a fresh executive.
-pub fn plan_to_motion(samples: usize, namespace: &str) -> anyhow::Result<Summary> {
+pub fn plan_to_motion(samples: usize, namespace: &str) -> Result<Summary, BenchError> {
     let mut ns_samples = Vec::with_capacity(samples);
     for i in 0..samples {
         let d = one(&format!("{namespace}-{i}"))?;
@@ -193,7 +210,7 @@ mod tests {
     fn one_plan_reaches_the_base() {
         let ns = format!("test-{}-plan-motion", std::process::id());
         if let Err(e) = super::plan_to_motion(1, &ns) {
-            panic!("{e:#}");
+            panic!("{e}");
         }
     }
 }
