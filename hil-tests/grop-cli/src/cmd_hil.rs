@@ -237,6 +237,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 let t0 = Instant::now();
                 let result = mission::start(&spec, &bins)
                     .and_then(|m| m.finish(Duration::from_secs(600), &mut |_| {}))
+                    .map_err(anyhow::Error::from)
                     .and_then(|report| save_picture(&args, &spec, &report).map(|()| report));
                 match result {
                     Ok(report) => {

@@ -105,7 +105,10 @@ pub fn room_view(scene: &Scene, pixels_per_m: f64, whole_room: bool) -> RoomView
 /// in the same cargo build as this program's package, so that they share its features and a
 /// workspace build (or `cargo run -p grop-cli`) leaves nothing to compile again.
 pub fn mission_binaries(build: bool) -> anyhow::Result<hil_world::mission::Binaries> {
-    hil_world::mission::binaries_built_with(build, &[env!("CARGO_PKG_NAME")])
+    Ok(hil_world::mission::binaries_built_with(
+        build,
+        &[env!("CARGO_PKG_NAME")],
+    )?)
 }
 
 /// The checkout this program was built from.

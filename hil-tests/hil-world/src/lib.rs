@@ -16,6 +16,7 @@
 
 pub mod faults;
 pub mod fixes;
+pub mod harness_error;
 mod injector;
 pub mod lidar;
 pub mod mission;
@@ -1077,8 +1078,8 @@ pub(crate) fn deployment_for(
     namespace: &str,
     clock: &str,
     bus: &str,
-    field: &dyn Fn(&str) -> anyhow::Result<String>,
-) -> anyhow::Result<String> {
+    field: &dyn Fn(&str) -> Result<String, harness_error::HarnessError>,
+) -> Result<String, harness_error::HarnessError> {
     let quote = |p: &std::path::Path| format!("{:?}", p.display().to_string());
     Ok(format!(
         "# Written by the HIL mission runner for one closed-loop run.\n\

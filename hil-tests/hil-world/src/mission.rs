@@ -14,7 +14,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::mpsc::{Receiver, channel};
 use std::time::{Duration, Instant};
 
-use anyhow::{Context, bail};
+use crate::harness_error::{Context, HarnessError, bail};
 use world::{RobotConfig, Scene};
 
 use crate::report::WorldReport;
@@ -59,7 +59,7 @@ fn find_in(dir: &Path) -> Option<Binaries> {
 /// --examples` in the same profile: the feature set `cargo test --workspace` builds with, so
 /// after the test build this compiles nothing (a build of just the world and the onboard
 /// packages would compile about 40 crates again with other features). For tests.
-pub fn binaries(build: bool) -> anyhow::Result<Binaries> {
+pub fn binaries(build: bool) -> Result<Binaries, HarnessError> {
     binaries_built_with(build, &[])
 }
 
@@ -69,7 +69,7 @@ pub fn binaries(build: bool) -> anyhow::Result<Binaries> {
 /// `memchr`, `once_cell`, `digest`, `num-bigint` than `cargo build -p grop-cli` or
 /// `--workspace` gave them, and about 40 crates compile again. Built with the program's package
 /// they get the same features, so the program's own build already built them.
-pub fn binaries_built_with(build: bool, packages: &[&str]) -> anyhow::Result<Binaries> {
+pub fn binaries_built_with(build: bool, packages: &[&str]) -> Result<Binaries, HarnessError> {
     let exe = std::env::current_exe().context("locating the running program")?;
     let dir = exe
         .parent()
@@ -246,7 +246,7 @@ impl RunningMission {
     /// The address of the live view (the recorder prints it once it listens), waiting up to
     /// `timeout`; an error when the recorder exits first (a bind error names the address) or
     /// the mission has no live view.
-    pub fn live_addr(&mut self, timeout: Duration) -> anyhow::Result<std::net::SocketAddr> {
+    pub fn live_addr(&mut self, timeout: Duration) -> Result<std::net::SocketAddr, HarnessError> {
         let out = self.dir.join("recorder-out.log");
         let err = self.dir.join("recorder.log");
         let end = Instant::now() + timeout;
@@ -327,7 +327,7 @@ impl RunningMission {
         self,
         timeout: Duration,
         echo: &mut dyn FnMut(&str),
-    ) -> anyhow::Result<WorldReport> {
+    ) -> Result<WorldReport, HarnessError> {
         self.finish_measured(timeout, echo)
             .map(|(report, _)| report)
     }
@@ -338,7 +338,7 @@ impl RunningMission {
         mut self,
         timeout: Duration,
         echo: &mut dyn FnMut(&str),
-    ) -> anyhow::Result<(WorldReport, [u64; 3])> {
+    ) -> Result<(WorldReport, [u64; 3]), HarnessError> {
         let end = Instant::now() + timeout;
         let status = loop {
             while let Ok(line) = self.lines.try_recv() {
@@ -470,7 +470,7 @@ impl Drop for RunningMission {
     clippy::too_many_lines,
     reason = "starts a mission's processes in order, each failure naming its step"
 )]
-pub fn start(spec: &MissionSpec, bins: &Binaries) -> anyhow::Result<RunningMission> {
+pub fn start(spec: &MissionSpec, bins: &Binaries) -> Result<RunningMission, HarnessError> {
     std::fs::create_dir_all(&spec.dir)
         .with_context(|| format!("creating {}", spec.dir.display()))?;
     // Absolute: the deployment file's relative paths resolve against its own folder.
@@ -503,7 +503,7 @@ pub fn start(spec: &MissionSpec, bins: &Binaries) -> anyhow::Result<RunningMissi
         .with_context(|| format!("writing {}", robot_path.display()))?;
     let report_path = spec.dir.join("world-report.json");
     let _ = std::fs::remove_file(&report_path);
-    let log = |name: &str| -> anyhow::Result<Stdio> {
+    let log = |name: &str| -> Result<Stdio, HarnessError> {
         let path = spec.dir.join(format!("{name}.log"));
         Ok(std::fs::File::create(&path)
             .with_context(|| format!("creating {}", path.display()))?
@@ -572,7 +572,7 @@ pub fn start(spec: &MissionSpec, bins: &Binaries) -> anyhow::Result<RunningMissi
             }
         }
     };
-    let field = |key: &str| -> anyhow::Result<String> {
+    let field = |key: &str| -> Result<String, HarnessError> {
         ready
             .split_whitespace()
             .find_map(|kv| kv.strip_prefix(&format!("{key}=")).map(str::to_owned))

@@ -6,14 +6,14 @@
 
 use std::path::{Path, PathBuf};
 
-use anyhow::Context;
+use crate::harness_error::{Context, HarnessError, bail};
 use world::Scene;
 
 /// The suites that have a name, and their folders below the workspace root.
 pub const SUITES: [(&str, &str); 1] = [("handmade", "hil-tests/layouts")];
 
 /// The folder of the named suite (an absolute path inside this checkout).
-pub fn suite_dir(name: &str) -> anyhow::Result<PathBuf> {
+pub fn suite_dir(name: &str) -> Result<PathBuf, HarnessError> {
     let (_, rel) = SUITES.iter().find(|(n, _)| *n == name).with_context(|| {
         let known: Vec<&str> = SUITES.iter().map(|(n, _)| *n).collect();
         format!("unknown suite {name:?} (known: {})", known.join(", "))
@@ -36,22 +36,20 @@ pub struct SuiteScene {
 
 /// Every `.toml` and `.json` scene file of `dir`, in file-name order, loaded and validated; a
 /// bad file is an error naming it and its field. An empty folder is an error too.
-pub fn load_dir(dir: &Path) -> anyhow::Result<Vec<SuiteScene>> {
+pub fn load_dir(dir: &Path) -> Result<Vec<SuiteScene>, HarnessError> {
     let mut paths: Vec<PathBuf> = std::fs::read_dir(dir)
         .with_context(|| format!("reading the scene folder {}", dir.display()))?
         .filter_map(|e| e.ok().map(|e| e.path()))
         .filter(|p| p.is_file() && p.extension().is_some_and(|e| e == "toml" || e == "json"))
         .collect();
     paths.sort();
-    anyhow::ensure!(
-        !paths.is_empty(),
-        "no scene files (.toml, .json) in {}",
-        dir.display()
-    );
+    if paths.is_empty() {
+        bail!("no scene files (.toml, .json) in {}", dir.display());
+    }
     paths
         .into_iter()
         .map(|path| {
-            let scene = Scene::load(&path)?;
+            let scene = Scene::load(&path).context("loading a scene")?;
             scene
                 .validate()
                 .with_context(|| format!("scene file {}", path.display()))?;
