@@ -49,7 +49,7 @@ source "$root/.ci/sim-ur5e-wait.sh"
 wait_for_sim_ur5e ur-rtde-check
 
 status=0
-timeout 120 "$venv/bin/python" "$root/hil-tests/sim-ur5e/python/test_ur_rtde.py" "$work/ports.json" || status=$?
+timeout 120 "$venv/bin/python" "$root/hil-tests/simulators/sim-ur5e/python/test_ur_rtde.py" "$work/ports.json" || status=$?
 if [[ $status -ne 0 ]]; then
     echo "ur-rtde-check: simulator log:" >&2
     tail -n 50 "$work/sim.log" >&2

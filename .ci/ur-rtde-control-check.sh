@@ -51,7 +51,7 @@ source "$root/.ci/sim-ur5e-wait.sh"
 wait_for_sim_ur5e ur-rtde-control-check
 
 status=0
-timeout 100 "$venv/bin/python" "$root/hil-tests/sim-ur5e/python/test_ur_rtde_control.py" || status=$?
+timeout 100 "$venv/bin/python" "$root/hil-tests/simulators/sim-ur5e/python/test_ur_rtde_control.py" || status=$?
 if [[ $status -ne 0 ]]; then
     echo "ur-rtde-control-check: simulator log:" >&2
     tail -n 50 "$work/sim.log" >&2
