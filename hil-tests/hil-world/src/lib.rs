@@ -13,6 +13,14 @@
 //!
 //! The onboard binaries run against it unchanged: they see a CAN bus, a UR5e, iceoryx2 topics
 //! and a clock.
+//!
+//! [`World::run`]'s step is an ordered list of systems (the private `systems` module, as
+//! copper-rs's task list): join, fault injector, chair moves, base and CAN, arm, lidar,
+//! readings, fault watch, legs, contacts, loads, tray, truth, fixes, heartbeat, operator,
+//! camera, plans, events, deaths, trajectory, progress, end, clock advance; each a struct with
+//! a `step(&mut self, ctx)`, run in that fixed order every step and sharing one context. The
+//! order is behaviour: every publish and every random draw happens in it, and the logs of two
+//! runs are compared byte for byte.
 
 pub mod faults;
 pub mod fixes;
