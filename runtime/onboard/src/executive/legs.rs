@@ -10,7 +10,7 @@ use motion_control::{Pose2, Twist};
 
 use super::AbortReason;
 use super::cycle::{CycleInputs, CycleOutputs};
-use super::mission::{MissionCore, Phase};
+use super::mission::{DOCKING_LINE_MARGIN_M, MissionCore, Phase};
 use super::worker::{Answer, Job, PathFailure, SeenPoints};
 use crate::localisation::{PlanarPose, wrap};
 
@@ -29,26 +29,12 @@ pub const DOCKING_DISTANCES_M: [f64; 5] = [1.0, 0.75, 0.45, 0.3, 0.15];
 /// free with [`DOCKING_LINE_MARGIN_M`], uses it all the way.
 pub const DOCKING_SHAPE_RANGE_M: f64 = 0.5;
 
-/// Margin around the footprint for the straight docking line at the goal's heading (m): the
-/// monitor's docking shape.
-pub const DOCKING_LINE_MARGIN_M: f64 = 0.01;
-
-/// Margin around the footprint for a sound docking line (m): the monitor's docking shape plus
-/// three sigmas of the range sensor's noise, so passing furniture does not trip the monitor.
-/// Lines this free are preferred, a few centimetres along the table if need be
-/// ([`DOCK_SHIFTS_M`]); a line free only by [`DOCKING_LINE_MARGIN_M`] is the fallback.
-pub const SOUND_LINE_MARGIN_M: f64 = 0.04;
-
 /// Sideways shifts of a docking goal tried, nearest first (m, across the goal's heading): the
 /// arm plans from the pose the base reaches, so a few centimetres along the table cost nothing
 /// and can buy a clear line in past a chair.
 pub const DOCK_SHIFTS_M: [f64; 11] = [
     0.0, 0.02, -0.02, 0.04, -0.04, 0.06, -0.06, 0.08, -0.08, 0.1, -0.1,
 ];
-
-/// Margin around the footprint for turning in place at a pre-goal (m): the monitor's stop zone
-/// plus a few centimetres of localisation error.
-pub const TURN_MARGIN_M: f64 = 0.06;
 
 /// How often a blocked way in to a standing spot is looked at again while the base waits.
 const DOCK_RECHECK: Duration = Duration::from_millis(200);
@@ -309,6 +295,9 @@ impl MissionCore {
     /// where a turn in place is free (with [`TURN_MARGIN_M`], every 15 degrees); failing that,
     /// the longest free line. The pre-goal of a docking (behind a table goal) and the end of a
     /// back-out (behind the base at the table).
+    ///
+    /// [`SOUND_LINE_MARGIN_M`]: super::mission::SOUND_LINE_MARGIN_M
+    /// [`TURN_MARGIN_M`]: super::mission::TURN_MARGIN_M
     fn free_stretch(&self, x: f64, y: f64, yaw: f64) -> Option<f64> {
         self.sound_stretch(x, y, yaw)
             .or_else(|| self.stretch_with(x, y, yaw, &self.line_robot))
@@ -319,6 +308,8 @@ impl MissionCore {
     /// and whose pre-goal is free to turn at; failing that, the nearest with a line free by
     /// [`DOCKING_LINE_MARGIN_M`] (at each spot, a pre-goal free to turn at first). None: no
     /// spot within the shifts is free on the map.
+    ///
+    /// [`SOUND_LINE_MARGIN_M`]: super::mission::SOUND_LINE_MARGIN_M
     fn docking_spot(&self, step: &TaskStep) -> Option<(f64, f64, f64)> {
         let (s, c) = step.yaw_rad.sin_cos();
         let yaw = step.yaw_rad;
@@ -340,6 +331,8 @@ impl MissionCore {
 
     /// The longest stretch whose line is free with [`SOUND_LINE_MARGIN_M`] and whose end is
     /// free to turn at.
+    ///
+    /// [`SOUND_LINE_MARGIN_M`]: super::mission::SOUND_LINE_MARGIN_M
     fn sound_stretch(&self, x: f64, y: f64, yaw: f64) -> Option<f64> {
         DOCKING_DISTANCES_M.iter().copied().find(|d| {
             self.line_free(x, y, yaw, *d, &self.sound_line_robot) && self.turn_free(x, y, yaw, *d)
@@ -355,6 +348,8 @@ impl MissionCore {
 
     /// Whether a turn in place `d` behind (`x`, `y`) along `yaw` is free (with
     /// [`TURN_MARGIN_M`], every 15 degrees).
+    ///
+    /// [`TURN_MARGIN_M`]: super::mission::TURN_MARGIN_M
     fn turn_free(&self, x: f64, y: f64, yaw: f64, d: f64) -> bool {
         (0..12).all(|k| {
             let heading = yaw + f64::from(k) * std::f64::consts::PI / 12.0;

@@ -24,7 +24,6 @@ use ur5e_kin::Joints;
 use world::nav::OccupancyGrid;
 
 use super::cycle::{ArmCommand, CycleInputs, CycleOutputs, MonitorMode};
-use super::safety::{self, Latch};
 use super::unload::{
     ArmFault, ArmPort, SkillStatus, TrayGeometry, UnloadFailure, UnloadProgress, UnloadSequence,
 };
@@ -229,8 +228,33 @@ pub struct MissionCore {
     /// A latched safety stop that pauses the mission (a UR safeguard stop).
     pub(super) latch: Option<Latch>,
     /// The arm has reported robot mode RUNNING.
-    arm_running_seen: bool,
+    pub(super) arm_running_seen: bool,
     pub(super) stats: CoreStats,
+}
+
+/// Margin around the footprint for the straight docking line at the goal's heading (m): the
+/// monitor's docking shape.
+pub const DOCKING_LINE_MARGIN_M: f64 = 0.01;
+
+/// Margin around the footprint for a sound docking line (m): the monitor's docking shape plus
+/// three sigmas of the range sensor's noise, so passing furniture does not trip the monitor.
+/// Lines this free are preferred, a few centimetres along the table if need be
+/// (the legs' docking shifts); a line free only by [`DOCKING_LINE_MARGIN_M`] is the fallback.
+pub const SOUND_LINE_MARGIN_M: f64 = 0.04;
+
+/// Margin around the footprint for turning in place at a pre-goal (m): the monitor's stop zone
+/// plus a few centimetres of localisation error.
+pub const TURN_MARGIN_M: f64 = 0.06;
+
+/// A latched safety stop that pauses the mission.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Latch {
+    /// The safety mode that latched it.
+    pub safety_mode: i32,
+    /// When it latched.
+    pub since: Duration,
+    /// Its cause has cleared (the arm is back in normal mode); an enable now releases it.
+    pub cleared: bool,
 }
 
 impl MissionCore {
@@ -243,9 +267,9 @@ impl MissionCore {
         tray: TrayGeometry,
         objects: usize,
     ) -> Self {
-        let line_robot = grown(&config.robot, super::legs::DOCKING_LINE_MARGIN_M);
-        let sound_line_robot = grown(&config.robot, super::legs::SOUND_LINE_MARGIN_M);
-        let turn_robot = grown(&config.robot, super::legs::TURN_MARGIN_M);
+        let line_robot = grown(&config.robot, DOCKING_LINE_MARGIN_M);
+        let sound_line_robot = grown(&config.robot, SOUND_LINE_MARGIN_M);
+        let turn_robot = grown(&config.robot, TURN_MARGIN_M);
         let remaining = if objects >= 64 {
             u64::MAX
         } else {
@@ -388,15 +412,7 @@ impl MissionCore {
     fn arm_reading(&mut self, inputs: &CycleInputs<'_>, outputs: &mut CycleOutputs) {
         let now = inputs.now;
         match inputs.arm {
-            Ok(snapshot) => {
-                let verdict = safety::classify(
-                    &snapshot,
-                    self.arm_running_seen,
-                    self.config.allow_reduced_mode,
-                );
-                self.arm_running_seen |= snapshot.robot_mode == safety::ROBOT_MODE_RUNNING;
-                self.arm_verdict(verdict, now, outputs);
-            }
+            Ok(snapshot) => self.arm_modes(&snapshot, now, outputs),
             Err(ArmFault::LinkLost) => self.abort(AbortReason::ArmLinkLost, now, outputs),
             Err(ArmFault::ProtectiveStop | ArmFault::EmergencyStop) => {
                 self.abort(AbortReason::ArmStopped, now, outputs)
