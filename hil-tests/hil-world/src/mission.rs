@@ -583,7 +583,7 @@ pub fn start(spec: &MissionSpec, bins: &Binaries) -> anyhow::Result<RunningMissi
     let bus = field("bus")?;
 
     let deployment_path = spec.dir.join("deployment.toml");
-    let deployment = crate::deployment_for(
+    let deployment = crate::deployment::deployment_for(
         spec,
         &scene_path,
         &robot_path,

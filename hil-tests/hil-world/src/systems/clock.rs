@@ -3,7 +3,7 @@
 
 use std::time::Duration;
 
-use super::{Ctx, Flow, System};
+use super::context::{Ctx, Flow, System};
 use crate::report::MissionEnd;
 use crate::secs;
 

@@ -3,7 +3,7 @@
 
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 
-use super::{Ctx, Flow, System};
+use super::context::{Ctx, Flow, System};
 use crate::{base_limits, secs};
 
 /// The CAN bus's fault injector and the simulated RMP. Contact is not free: a base that would

@@ -2,7 +2,7 @@
 //! (`World::inject`, [`crate::injector`]), the operator's enable after a release, and what the
 //! report records after the fault.
 
-use super::{Ctx, Flow, System};
+use super::context::{Ctx, Flow, System};
 use crate::{max_abs, secs};
 
 /// Strikes when the fault's trigger comes, keeps up what lasts, releases.

@@ -3,7 +3,7 @@
 
 use grop_ipc::TaskStepKind;
 
-use super::{Ctx, Flow, System};
+use super::context::{Ctx, Flow, System};
 use crate::report::{DeathRecord, EventRecord, MissionEnd, PlanRecord};
 use crate::{max_abs, ns_to_s, secs};
 

@@ -3,7 +3,7 @@
 
 use grop_ipc::LoadRequestMsg;
 
-use super::{Ctx, Flow, System};
+use super::context::{Ctx, Flow, System};
 use crate::objects::ObjectEvent;
 
 /// The station loads exactly what the executive asks for, once per request, once the base

@@ -5,7 +5,7 @@ use std::time::Duration;
 
 use grop_ipc::TaskStepKind;
 
-use super::{Ctx, Flow, System};
+use super::context::{Ctx, Flow, System};
 use crate::objects::{ObjectState, Verdict};
 use crate::report::LegRecord;
 use crate::{max_abs, secs};

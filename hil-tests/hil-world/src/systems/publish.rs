@@ -6,7 +6,7 @@ use std::time::Duration;
 use grop_clock::duration_ns as ns;
 use grop_ipc::{BasePoseMsg, PoseFixKind, ProcessRole};
 
-use super::{Ctx, Flow, System};
+use super::context::{Ctx, Flow, System};
 use crate::{TRUTH_PERIOD, WorldConfig, table_edge_y};
 
 /// The truth on `world/truth`, 20 Hz, for the log (never read onboard).

@@ -5,7 +5,7 @@ use std::time::Duration;
 
 use ur5e_kin::ObstacleBox;
 
-use super::{Ctx, Flow, System};
+use super::context::{Ctx, Flow, System};
 use crate::report::{CollisionRecord, Part};
 use crate::{WorldConfig, moves, secs};
 
