@@ -22,7 +22,7 @@
 //! order is behaviour: every publish and every random draw happens in it, and the logs of two
 //! runs are compared byte for byte.
 
-mod deployment;
+mod binaries;
 pub mod faults;
 pub mod fixes;
 mod injector;
