@@ -2,7 +2,13 @@
 //! world's step that strikes a fault when its trigger comes and keeps up what lasts
 //! (`World::inject`). The kinds, triggers and the faulty bus are in [`crate::faults`].
 
-use super::*;
+use std::time::Duration;
+
+use can_bus::VirtualCanBus;
+
+use crate::faults::{CanFault, FaultKind, FaultSpec, Trigger};
+use crate::report::WorldReport;
+use crate::{World, secs};
 
 /// How long the safeguard input stays open (`safeguard-stop`).
 const SAFEGUARD_OPEN: Duration = Duration::from_secs(2);

@@ -64,13 +64,13 @@ pub use camera::{
 };
 pub use messages::{
     ArmSafety, ArmStateMsg, BaseMode, BaseStateMsg, EVENT_DETAIL_CAPACITY, EventKind, EventMsg,
-    MessageError, TableSide,
+    MessageError, ProcessRole, TableSide,
 };
 pub use mission::{
     BasePoseMsg, HEATMAP_COLS, HEATMAP_ROWS, HeartbeatMsg, HeatmapsMsg, LoadRequestMsg,
     LocationHeatmap, MAX_HEATMAPS, MAX_TASK_OBJECTS, MAX_TASK_STEPS, MAX_TRAY_SLOTS,
-    OperatorEnableMsg, PoseFixKind, ProcessRole, REQUEST_AT_TABLE, ReplanReason, ReplanRequestMsg,
-    TaskPlanMsg, TaskStep, TaskStepKind, TruthMsg,
+    OperatorEnableMsg, PoseFixKind, REQUEST_AT_TABLE, ReplanReason, ReplanRequestMsg, TaskPlanMsg,
+    TaskStep, TaskStepKind, TruthMsg,
 };
 pub use port::{
     FrameError, IpcNode, NodeError, PortError, PublishError, ReceiveError, Received,

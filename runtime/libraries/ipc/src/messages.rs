@@ -96,6 +96,38 @@ impl TableSide {
 }
 
 // ---------------------------------------------------------------------------------------------
+// process roles (health, events)
+
+/// Which onboard process a heartbeat (`health`) or an event comes from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[repr(u32)]
+pub enum ProcessRole {
+    /// Perception and planning node.
+    Planner = 1,
+    /// Executive (base and arm loops).
+    Executive = 2,
+    /// The HIL world (simulated devices and clock).
+    World = 3,
+}
+
+impl ProcessRole {
+    pub(crate) fn from_wire(value: u32) -> Result<Self, MessageError> {
+        Ok(match value {
+            1 => Self::Planner,
+            2 => Self::Executive,
+            3 => Self::World,
+            _ => {
+                return Err(MessageError::UnknownEnumValue {
+                    message: "HeartbeatMsg",
+                    field: "role",
+                    value,
+                });
+            }
+        })
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
 // base/state
 
 /// Operational mode of the RMP base as the driver last saw it.
@@ -392,7 +424,7 @@ pub struct EventMsg {
     pub step_index: u32,
     /// Bytes of `detail` in use.
     pub detail_len: u32,
-    /// The publisher's [`crate::ProcessRole`] as an integer, 0 when not said (this field was
+    /// The publisher's [`ProcessRole`] as an integer, 0 when not said (this field was
     /// reserved, always zero, before: the layout is unchanged).
     pub source: u32,
     /// UTF-8 text for humans and logs; read with [`EventMsg::detail`].
@@ -428,14 +460,14 @@ impl EventMsg {
     }
 
     /// Says who publishes it.
-    pub fn with_source(mut self, role: crate::ProcessRole) -> Self {
+    pub fn with_source(mut self, role: ProcessRole) -> Self {
         self.source = role as u32;
         self
     }
 
     /// Who published it (`None` when not said or unknown).
-    pub fn source(&self) -> Option<crate::ProcessRole> {
-        crate::ProcessRole::from_wire(self.source).ok()
+    pub fn source(&self) -> Option<ProcessRole> {
+        ProcessRole::from_wire(self.source).ok()
     }
 
     /// The text, checked.

@@ -6,7 +6,7 @@
 
 use iceoryx2::prelude::ZeroCopySend;
 
-use crate::messages::{MessageError, TableSide};
+use crate::messages::{MessageError, ProcessRole, TableSide};
 
 // ---------------------------------------------------------------------------------------------
 // plan/task
@@ -573,35 +573,6 @@ impl BasePoseMsg {
 
 // ---------------------------------------------------------------------------------------------
 // health
-
-/// Which onboard process a heartbeat comes from.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-#[repr(u32)]
-pub enum ProcessRole {
-    /// Perception and planning node.
-    Planner = 1,
-    /// Executive (base and arm loops).
-    Executive = 2,
-    /// The HIL world (simulated devices and clock).
-    World = 3,
-}
-
-impl ProcessRole {
-    pub(crate) fn from_wire(value: u32) -> Result<Self, MessageError> {
-        Ok(match value {
-            1 => Self::Planner,
-            2 => Self::Executive,
-            3 => Self::World,
-            _ => {
-                return Err(MessageError::UnknownEnumValue {
-                    message: "HeartbeatMsg",
-                    field: "role",
-                    value,
-                });
-            }
-        })
-    }
-}
 
 /// A process is alive (`health`), sent at a fixed rate; a reader that misses them for its
 /// timeout treats the process as dead.

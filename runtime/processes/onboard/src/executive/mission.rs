@@ -25,7 +25,6 @@ use ur5e_kin::Joints;
 use world::nav::OccupancyGrid;
 
 use super::cycle::{ArmCommand, CycleInputs, CycleOutputs, MonitorMode};
-use super::safety::{self, Latch};
 use super::unload::{
     ArmFault, ArmPort, SkillStatus, TrayGeometry, UnloadFailure, UnloadProgress, UnloadSequence,
 };
@@ -216,8 +215,19 @@ pub struct MissionCore {
     /// A latched safety stop that pauses the mission (a UR safeguard stop).
     pub(super) latch: Option<Latch>,
     /// The arm has reported robot mode RUNNING.
-    arm_running_seen: bool,
+    pub(super) arm_running_seen: bool,
     pub(super) stats: CoreStats,
+}
+
+/// A latched safety stop that pauses the mission.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Latch {
+    /// The safety mode that latched it.
+    pub safety_mode: i32,
+    /// When it latched.
+    pub since: Duration,
+    /// Its cause has cleared (the arm is back in normal mode); an enable now releases it.
+    pub cleared: bool,
 }
 
 impl MissionCore {
@@ -370,15 +380,7 @@ impl MissionCore {
     fn arm_reading(&mut self, inputs: &CycleInputs<'_>, outputs: &mut CycleOutputs) {
         let now = inputs.now;
         match inputs.arm {
-            Ok(snapshot) => {
-                let verdict = safety::classify(
-                    &snapshot,
-                    self.arm_running_seen,
-                    self.config.allow_reduced_mode,
-                );
-                self.arm_running_seen |= snapshot.robot_mode == safety::ROBOT_MODE_RUNNING;
-                self.arm_verdict(verdict, now, outputs);
-            }
+            Ok(snapshot) => self.arm_modes(&snapshot, now, outputs),
             Err(ArmFault::LinkLost) => self.abort(AbortReason::ArmLinkLost, now, outputs),
             Err(ArmFault::ProtectiveStop | ArmFault::EmergencyStop) => {
                 self.abort(AbortReason::ArmStopped, now, outputs)

@@ -18,7 +18,7 @@ use grop_ipc::EventKind;
 use motion_control::Twist;
 
 use super::cycle::{ArmCommand, CycleOutputs};
-use super::mission::{MissionCore, Parking, Phase};
+use super::mission::{Latch, MissionCore, Parking, Phase};
 use super::unload::{ArmFault, UnloadFailure};
 use super::{AbortReason, ArmSnapshot, MissionState};
 use ur5e::dashboard::SafetyMode;
@@ -92,18 +92,23 @@ pub fn safety_mode_name(code: i32) -> &'static str {
     }
 }
 
-/// A latched safety stop that pauses the mission.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Latch {
-    /// The safety mode that latched it.
-    pub safety_mode: i32,
-    /// When it latched.
-    pub since: Duration,
-    /// Its cause has cleared (the arm is back in normal mode); an enable now releases it.
-    pub cleared: bool,
-}
-
 impl MissionCore {
+    /// Classifies the arm's modes ([`classify`]) and acts on the verdict.
+    pub(super) fn arm_modes(
+        &mut self,
+        snapshot: &ArmSnapshot,
+        now: Duration,
+        outputs: &mut CycleOutputs,
+    ) {
+        let verdict = classify(
+            snapshot,
+            self.arm_running_seen,
+            self.config.allow_reduced_mode,
+        );
+        self.arm_running_seen |= snapshot.robot_mode == ROBOT_MODE_RUNNING;
+        self.arm_verdict(verdict, now, outputs);
+    }
+
     /// Acts on what the arm's modes ask (docs/runtime.md, "Safety stops and holds").
     pub(super) fn arm_verdict(
         &mut self,
