@@ -70,19 +70,7 @@ fn views_of_a_mission() -> Vec<(Channel, u64, Vec<u8>)> {
         v.base_state(&base(i, i * 20_000_000, 0.01 * i as f64));
     }
     v.plan(&plan(&scene));
-    let mut maps = Box::new(HeatmapsMsg {
-        stamp_ns: 10,
-        source_frame_id: 1,
-        count: 2,
-        reserved: 0,
-        locations: [LocationHeatmap {
-            object_index: 0,
-            side: 1,
-            target_m: scene.targets[0].as_array(),
-            feasibility: 0.8,
-            values: [0.25; HEATMAP_ROWS * HEATMAP_COLS],
-        }; MAX_HEATMAPS],
-    });
+    let mut maps = heatmaps(&scene, 1, 2, 0.25);
     maps.locations[1].side = -1;
     v.heatmaps(&maps);
     let mut loaded = EventMsg::new(EventKind::Loaded, 20, "objects 0x1 on the tray");
@@ -96,6 +84,24 @@ fn views_of_a_mission() -> Vec<(Channel, u64, Vec<u8>)> {
     v.event(&placed);
     out.extend(v.take(4_000_000_000));
     out
+}
+
+/// Heatmaps of `count` locations of the scene's first target (near side), every cell `value`,
+/// from the frame `source_frame_id`.
+fn heatmaps(scene: &Scene, source_frame_id: u64, count: u32, value: f32) -> Box<HeatmapsMsg> {
+    Box::new(HeatmapsMsg {
+        stamp_ns: 10,
+        source_frame_id,
+        count,
+        reserved: 0,
+        locations: [LocationHeatmap {
+            object_index: 0,
+            side: 1,
+            target_m: scene.targets[0].as_array(),
+            feasibility: 0.8,
+            values: [value; HEATMAP_ROWS * HEATMAP_COLS],
+        }; MAX_HEATMAPS],
+    })
 }
 
 /// The camera frame `frame_id` of `scene`, as the world renders it.
@@ -413,19 +419,7 @@ fn psi_s_views_are_the_cut_crops_beside_their_heatmaps() {
     // Heatmaps naming a frame that never came: no image, counted.
     let mut v = Views::new(scene.clone(), &RobotConfig::default());
     v.camera(&frame_of(&scene, 7));
-    let mut maps = Box::new(HeatmapsMsg {
-        stamp_ns: 10,
-        source_frame_id: 8,
-        count: 1,
-        reserved: 0,
-        locations: [LocationHeatmap {
-            object_index: 0,
-            side: 1,
-            target_m: scene.targets[0].as_array(),
-            feasibility: 0.8,
-            values: [0.5; HEATMAP_ROWS * HEATMAP_COLS],
-        }; MAX_HEATMAPS],
-    });
+    let mut maps = heatmaps(&scene, 8, 1, 0.5);
     v.heatmaps(&maps);
     assert!(!v.take(1).iter().any(|(c, _, _)| *c == Channel::PsiViews));
     assert_eq!(v.psi_views_missed(), 1);
