@@ -76,14 +76,40 @@ fn the_monitor_stops_the_base_before_a_chair_the_map_does_not_know() {
     // fails cleanly, and the next path, planned with what the scan now sees, goes round it.
     let scene = west_of_the_station(7.0);
     let chair = chair_on_the_first_leg(&scene, 5.0);
+    let base = spec("lidar-unmapped-chair", 5);
     let spec = MissionSpec {
         scene,
         unmapped_chairs: vec![chair],
         max_sim_s: 150.0,
         lidar: true,
-        ..spec("lidar-unmapped-chair", 5)
+        log: Some(base.dir.join("mission.mcap")),
+        ..base
     };
     let report = run(&spec);
+    // The log's `/base/state` says what the monitor did: clear while the way was, then scaling
+    // the command down to nothing in front of the chair (the approach check: the footprint
+    // never reached the stop zone), with its clearance to the nearest point.
+    let log = grop_onboard::mission_log::MissionLog::read(spec.log.as_deref().expect("logged"))
+        .expect("the log reads");
+    let mut seen = std::collections::BTreeMap::new();
+    let mut closest = f64::INFINITY;
+    for m in log.channel(grop_onboard::mission_log::Channel::BaseState) {
+        let v: serde_json::Value = serde_json::from_slice(&m.data).expect("JSON");
+        let name = v["monitor_name"].as_str().expect("monitor_name").to_owned();
+        if let Some(c) = v["monitor_clearance_m"].as_f64() {
+            closest = closest.min(c);
+        }
+        *seen.entry(name).or_insert(0) += 1;
+    }
+    assert!(
+        seen.contains_key("Clear") && seen.contains_key("Approach"),
+        "{seen:?}"
+    );
+    assert!(!seen.contains_key("Off"), "the sensor was on: {seen:?}");
+    assert!(
+        (0.0..0.3).contains(&closest),
+        "the monitor's closest clearance {closest} m ({seen:?})"
+    );
     let gap = no_base_contact(&report);
     assert!(
         report.max_base_speed.0 > 0.1,

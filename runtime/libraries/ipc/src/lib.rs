@@ -64,7 +64,7 @@ pub use camera::{
 };
 pub use messages::{
     ArmSafety, ArmStateMsg, BaseMode, BaseStateMsg, EVENT_DETAIL_CAPACITY, EventKind, EventMsg,
-    MessageError, ProcessRole, TableSide,
+    MessageError, MonitorState, NO_CLEARANCE_CM, ProcessRole, TableSide,
 };
 pub use mission::{
     BasePoseMsg, HEATMAP_COLS, HEATMAP_ROWS, HeartbeatMsg, HeatmapsMsg, LoadRequestMsg,

@@ -171,10 +171,55 @@ impl BaseMode {
     }
 }
 
+/// What the collision monitor did with the last base cycle's command.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[repr(u8)]
+pub enum MonitorState {
+    /// No range sensor: the command passes unchecked.
+    Off = 0,
+    /// Nothing in any zone.
+    Clear = 1,
+    /// Capped at docking speed (docking, or escaping the stop zone).
+    Crawl = 2,
+    /// Something in the slowdown zone: the command scaled down.
+    Slowdown = 3,
+    /// The projected footprint meets the stop zone soon: the command scaled down.
+    Approach = 4,
+    /// Something in the stop zone: zero.
+    Stop = 5,
+    /// No scan, or a stale one: zero.
+    Stale = 6,
+}
+
+impl MonitorState {
+    fn from_wire(value: u8) -> Result<Self, MessageError> {
+        Ok(match value {
+            0 => Self::Off,
+            1 => Self::Clear,
+            2 => Self::Crawl,
+            3 => Self::Slowdown,
+            4 => Self::Approach,
+            5 => Self::Stop,
+            6 => Self::Stale,
+            _ => {
+                return Err(MessageError::UnknownEnumValue {
+                    message: "BaseStateMsg",
+                    field: "monitor",
+                    value: u32::from(value),
+                });
+            }
+        })
+    }
+}
+
+/// `BaseStateMsg::monitor_clearance_cm` when the monitor saw no point (or runs without a
+/// sensor).
+pub const NO_CLEARANCE_CM: u16 = u16::MAX;
+
 /// Odometry and status of the mobile base (`base/state`), published by the base driver.
 #[derive(Clone, Copy, Debug, PartialEq, ZeroCopySend)]
 #[repr(C)]
-#[type_name("grop_ipc::BaseStateMsg/v1")]
+#[type_name("grop_ipc::BaseStateMsg/v2")]
 pub struct BaseStateMsg {
     /// Message counter, increasing.
     pub seq: u64,
@@ -202,11 +247,28 @@ pub struct BaseStateMsg {
     pub link_up: u8,
     /// 1 while the driver's watchdog holds the base at zero velocity.
     pub watchdog_stopped: u8,
+    /// [`MonitorState`] as an integer; read with [`BaseStateMsg::monitor`].
+    pub monitor: u8,
     /// Zero.
-    pub reserved: [u8; 6],
+    pub reserved0: u8,
+    /// The collision monitor's clearance of the footprint to the nearest point, cm (saturated;
+    /// [`NO_CLEARANCE_CM`]: none seen; 0: a point in the footprint).
+    pub monitor_clearance_cm: u16,
+    /// Zero.
+    pub reserved: [u8; 2],
 }
 
 impl BaseStateMsg {
+    /// The collision monitor's state, checked.
+    pub fn monitor(&self) -> Result<MonitorState, MessageError> {
+        MonitorState::from_wire(self.monitor)
+    }
+
+    /// Sets the collision monitor's state.
+    pub fn set_monitor(&mut self, state: MonitorState) {
+        self.monitor = state as u8;
+    }
+
     /// The mode, checked.
     pub fn mode(&self) -> Result<BaseMode, MessageError> {
         BaseMode::from_wire(self.mode)
@@ -513,10 +575,19 @@ mod tests {
             fault_bits: 0,
             link_up: 0,
             watchdog_stopped: 0,
-            reserved: [0; 6],
+            monitor: 0,
+            reserved0: 0,
+            monitor_clearance_cm: 0,
+            reserved: [0; 2],
         };
         // A zeroed (never written) state says "unknown", never "tractor".
         assert_eq!(base.mode(), Ok(BaseMode::Unknown));
+        assert_eq!(base.monitor(), Ok(MonitorState::Off));
+        let mut stopped = base;
+        stopped.set_monitor(MonitorState::Stop);
+        assert_eq!(stopped.monitor(), Ok(MonitorState::Stop));
+        stopped.monitor = 7;
+        assert!(stopped.monitor().is_err());
         let mut event = EventMsg::new(EventKind::PlanStarted, 0, "");
         event.kind = 0;
         assert!(event.kind().is_err(), "a zeroed event has no kind");

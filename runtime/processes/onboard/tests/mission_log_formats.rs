@@ -9,8 +9,9 @@
 //! schemas but the camera). `tests/data/mission-log-v4.mcap` is the same for version 4,
 //! written by the build before version 5 (commit 7f033219: no truth, no Psi's views), and
 //! `tests/data/mission-log-v5.mcap` for version 5, written by the build before version 6
-//! (commit 54393696: no docking in the plans' steps). They stay as they are; the reader and
-//! `grop replay` must keep reading them.
+//! (commit 54393696: no docking in the plans' steps), and `tests/data/mission-log-v6.mcap` for
+//! version 6, written by the build before version 7 (commit 925d297d: no collision monitor state
+//! in `/base/state`). They stay as they are; the reader and `grop replay` must keep reading them.
 #![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failure panics with its message
 
 use std::path::{Path, PathBuf};
@@ -32,6 +33,7 @@ const V2: &str = "runtime/processes/onboard/tests/data/mission-log-v2.mcap";
 const V3: &str = "runtime/processes/onboard/tests/data/mission-log-v3.mcap";
 const V4: &str = "runtime/processes/onboard/tests/data/mission-log-v4.mcap";
 const V5: &str = "runtime/processes/onboard/tests/data/mission-log-v5.mcap";
+const V6: &str = "runtime/processes/onboard/tests/data/mission-log-v6.mcap";
 
 #[test]
 fn a_version_1_log_reads_and_every_message_decodes() {
@@ -56,6 +58,27 @@ fn a_version_4_log_reads_and_every_message_decodes() {
 #[test]
 fn a_version_5_log_reads_and_every_message_decodes() {
     reads_and_decodes(V5, 5);
+}
+
+#[test]
+fn a_version_6_log_reads_and_every_message_decodes() {
+    reads_and_decodes(V6, 6);
+}
+
+/// The replay of a version-6 log writes the collision monitor's state into `/base/state`
+/// (off: the replayed executive runs without the sensor, whose packets are not in the log).
+#[test]
+fn grop_replay_runs_on_a_version_6_log_and_its_base_states_say_the_monitor_s_state() {
+    let (_dir, replayed) = replays(V6);
+    let new = MissionLog::read(&replayed).expect("the replay's log reads");
+    let mut states = 0;
+    for m in new.channel(Channel::BaseState) {
+        let v: serde_json::Value = serde_json::from_slice(&m.data).expect("JSON");
+        assert_eq!(v["monitor_name"], "Off", "{v}");
+        assert!(v["monitor_clearance_m"].is_null(), "{v}");
+        states += 1;
+    }
+    assert!(states > 0);
 }
 
 fn reads_and_decodes(path: &str, version: u32) {

@@ -766,6 +766,7 @@ impl<D: BaseDevice, A: ArmDevice> Executive<D, A> {
             .unwrap_or(motion_control::Twist::ZERO);
         let watchdog = tick.as_ref().map(|t| t.input_stale).unwrap_or(true);
         let link_up = !matches!(tick, Err(BaseError::Silent { .. }));
+        let (monitor, clearance_cm) = self.monitor_wire();
         self.base_seq += 1;
         let seq = self.base_seq;
         self.stats.published += 1;
@@ -789,6 +790,36 @@ impl<D: BaseDevice, A: ArmDevice> Executive<D, A> {
             m.fault_bits = status.faults.words()[0];
             m.link_up = u8::from(link_up);
             m.watchdog_stopped = u8::from(watchdog);
+            m.set_monitor(monitor);
+            m.monitor_clearance_cm = clearance_cm;
         });
+    }
+
+    /// The collision monitor's last verdict as `base/state` carries it: its state, and the
+    /// clearance in whole centimetres (saturated; none seen, or no sensor: `NO_CLEARANCE_CM`).
+    fn monitor_wire(&self) -> (grop_ipc::MonitorState, u16) {
+        use grop_ipc::{MonitorState, NO_CLEARANCE_CM};
+        use motion_control::collision::Action;
+        if self.guard.is_none() {
+            return (MonitorState::Off, NO_CLEARANCE_CM);
+        }
+        let v = &self.last_verdict;
+        let state = match v.action {
+            Action::Clear => MonitorState::Clear,
+            Action::Crawl => MonitorState::Crawl,
+            Action::Slowdown => MonitorState::Slowdown,
+            Action::Approach => MonitorState::Approach,
+            Action::Stop => MonitorState::Stop,
+            Action::Stale => MonitorState::Stale,
+        };
+        let cm = if v.clearance_m.is_finite() {
+            // In range: 0 ..= 65,534 cm after the clamp.
+            (v.clearance_m.max(0.0) * 100.0)
+                .round()
+                .min(f32::from(NO_CLEARANCE_CM - 1)) as u16
+        } else {
+            NO_CLEARANCE_CM
+        };
+        (state, cm)
     }
 }

@@ -265,7 +265,12 @@ impl Channel {
                     "seq": int, "stamp_ns": int, "x_m": num, "y_m": num, "yaw_rad": num,
                     "speed_mps": num, "yaw_rate_radps": num, "commanded_speed_mps": num,
                     "commanded_yaw_rate_radps": num, "mode": int, "mode_name": text,
-                    "fault_bits": int, "link_up": int, "watchdog_stopped": int
+                    "fault_bits": int, "link_up": int, "watchdog_stopped": int,
+                    "monitor": {"type": "integer",
+                                "description": "the collision monitor: 0 off (no sensor), 1 clear, 2 crawl, 3 slowdown, 4 approach, 5 stop, 6 stale"},
+                    "monitor_name": text,
+                    "monitor_clearance_m": {"type": ["number", "null"],
+                                            "description": "footprint to the nearest point, to the cm (null: none seen, or no sensor)"}
                 }),
             ),
             Channel::ArmState => (
@@ -721,7 +726,10 @@ pub fn encode_base_state(m: &BaseStateMsg) -> Vec<u8> {
         "commanded_speed_mps": m.commanded_speed_mps,
         "commanded_yaw_rate_radps": m.commanded_yaw_rate_radps, "mode": m.mode,
         "mode_name": name(m.mode()), "fault_bits": m.fault_bits, "link_up": m.link_up,
-        "watchdog_stopped": m.watchdog_stopped
+        "watchdog_stopped": m.watchdog_stopped, "monitor": m.monitor,
+        "monitor_name": name(m.monitor()),
+        "monitor_clearance_m": (m.monitor_clearance_cm != grop_ipc::NO_CLEARANCE_CM)
+            .then(|| f64::from(m.monitor_clearance_cm) / 100.0)
     }))
 }
 

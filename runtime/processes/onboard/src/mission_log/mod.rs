@@ -37,7 +37,7 @@ pub const LOG_METADATA: &str = "grop.log";
 /// a channel added, removed or renamed. A log without it is version 1. The reader and
 /// `grop replay` read every version from [`OLDEST_LOG_FORMAT`] up to this one (docs/logs.md has
 /// the history of the versions).
-pub const LOG_FORMAT: u32 = 6;
+pub const LOG_FORMAT: u32 = 7;
 /// The oldest format version this build reads.
 pub const OLDEST_LOG_FORMAT: u32 = 1;
 

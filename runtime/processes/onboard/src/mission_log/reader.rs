@@ -515,13 +515,13 @@ mod tests {
         let v1 = log_with_metadata("grop.mission", &[("seed", "1")]);
         let log = MissionLog::from_bytes(&v1, Path::new("v1.mcap")).unwrap();
         assert_eq!(log.log_format, 1);
-        for known in ["1", "2", "3", "4", "5", "6"] {
+        for known in ["1", "2", "3", "4", "5", "6", "7"] {
             let bytes = log_with_metadata(LOG_METADATA, &[("log_format", known)]);
             let log = MissionLog::from_bytes(&bytes, Path::new("k.mcap")).unwrap();
             assert_eq!(log.log_format.to_string(), known);
         }
         // A version from the future, and zero: refused, naming the version and the file.
-        for (found, shown) in [("7", "log_format 7"), ("0", "log_format 0")] {
+        for (found, shown) in [("8", "log_format 8"), ("0", "log_format 0")] {
             let bytes = log_with_metadata(LOG_METADATA, &[("log_format", found)]);
             match MissionLog::from_bytes(&bytes, Path::new("future.mcap")) {
                 Err(e @ LogError::UnknownFormat { .. }) => {
@@ -530,7 +530,7 @@ mod tests {
                         text.contains(shown) && text.contains("future.mcap"),
                         "{text}"
                     );
-                    assert!(text.contains("(1 to 6)"), "{text}");
+                    assert!(text.contains("(1 to 7)"), "{text}");
                 }
                 other => panic!("log_format {found}: {other:?}"),
             }

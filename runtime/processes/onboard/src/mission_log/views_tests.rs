@@ -22,7 +22,10 @@ fn base(seq: u64, t_ns: u64, x: f64) -> BaseStateMsg {
         fault_bits: 0,
         link_up: 1,
         watchdog_stopped: 0,
-        reserved: [0; 6],
+        monitor: 0,
+        reserved0: 0,
+        monitor_clearance_cm: grop_ipc::NO_CLEARANCE_CM,
+        reserved: [0; 2],
     }
 }
 
